@@ -1,0 +1,39 @@
+# Quick start: `make run` (set up + run the default pipeline), `make test` (set up + run the tests).
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+export MUJOCO_GL ?= egl
+export PYOPENGL_PLATFORM ?= egl
+# Stages call `python`: make it the project environment's.
+export PATH := $(abspath $(BIN)):$(PATH)
+
+.PHONY: setup run test lint params clean-venv
+
+setup: $(STAMP)
+
+# open3d links against libusb-1.0, which fresh Debian images lack; everything else is on PyPI.
+$(STAMP): pyproject.toml requirements.lock
+	@ldconfig -p | grep -q 'libusb-1.0.so.0' || bash .ci/install-system-deps
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev]"
+	@[ -d .dvc ] || $(BIN)/dvc init -q
+	touch $(STAMP)
+
+run: setup
+	$(BIN)/dvc repro
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+lint: setup
+	$(BIN)/ruff check . && $(BIN)/ruff format --check .
+
+# Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
+params: setup
+	$(BIN)/python -m locoman.config.compose
+
+clean-venv:
+	rm -rf $(VENV)

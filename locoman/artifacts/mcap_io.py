@@ -1,0 +1,119 @@
+"""Time series to MCAP with Foxglove schemas, so Foxglove Studio shows the robot move.
+
+Messages are JSON-encoded with the ``jsonschema`` schema encoding, which Foxglove reads
+natively. :func:`write_frame_transforms` writes ``foxglove.FrameTransforms``: one message per
+time step holding the pose of every link or object relative to ``world``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.reader import make_reader
+from mcap.writer import Writer
+
+from locoman.artifacts.io import atomic_path
+
+_VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
+_QUAT = {"type": "object", "properties": {k: {"type": "number"} for k in "xyzw"}}
+_TIME = {
+    "type": "object",
+    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+}
+FRAME_TRANSFORMS_SCHEMA: dict[str, Any] = {
+    "title": "foxglove.FrameTransforms",
+    "type": "object",
+    "properties": {
+        "transforms": {
+            "type": "array",
+            "items": {
+                "title": "foxglove.FrameTransform",
+                "type": "object",
+                "properties": {
+                    "timestamp": _TIME,
+                    "parent_frame_id": {"type": "string"},
+                    "child_frame_id": {"type": "string"},
+                    "translation": _VEC3,
+                    "rotation": _QUAT,
+                },
+            },
+        }
+    },
+}
+
+
+def _stamp(t: float) -> dict[str, int]:
+    ns = round(t * 1e9)
+    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+
+def write_frame_transforms(
+    path: str | Path,
+    times: np.ndarray,
+    frames: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    topic: str = "/tf",
+    parent: str = "world",
+) -> None:
+    """Write link/object poses over time as ``foxglove.FrameTransforms`` messages.
+
+    Args:
+        path: Output ``.mcap`` file (written atomically).
+        times: (T,) time of each step [s], non-decreasing.
+        frames: Frame name -> (positions (T, 3) [m], quaternions (T, 4) (w, x, y, z)).
+        topic: MCAP topic.
+        parent: Parent frame of every transform.
+    """
+    times = np.asarray(times, dtype=float)
+    for name, (pos, quat) in frames.items():
+        if pos.shape != (len(times), 3) or quat.shape != (len(times), 4):
+            raise ValueError(
+                f"frame {name!r}: need positions (T, 3) and quaternions (T, 4) for T = "
+                f"{len(times)}, got {pos.shape} and {quat.shape}"
+            )
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        writer = Writer(fh)
+        writer.start(profile="", library="locoman")
+        schema_id = writer.register_schema(
+            name="foxglove.FrameTransforms",
+            encoding="jsonschema",
+            data=json.dumps(FRAME_TRANSFORMS_SCHEMA).encode(),
+        )
+        channel = writer.register_channel(topic=topic, message_encoding="json", schema_id=schema_id)
+        for k, t in enumerate(times):
+            stamp = _stamp(float(t))
+            transforms = []
+            for name, (pos, quat) in frames.items():
+                w, x, y, z = (float(v) for v in quat[k])
+                px, py, pz = (float(v) for v in pos[k])
+                transforms.append(
+                    {
+                        "timestamp": stamp,
+                        "parent_frame_id": parent,
+                        "child_frame_id": name,
+                        "translation": {"x": px, "y": py, "z": pz},
+                        "rotation": {"x": x, "y": y, "z": z, "w": w},
+                    }
+                )
+            ns = stamp["sec"] * 1_000_000_000 + stamp["nsec"]
+            writer.add_message(
+                channel_id=channel,
+                log_time=ns,
+                publish_time=ns,
+                sequence=k,
+                data=json.dumps({"transforms": transforms}, sort_keys=True).encode(),
+            )
+        writer.finish()
+
+
+def read_json_messages(path: str | Path, topic: str) -> list[tuple[str, int, dict[str, Any]]]:
+    """All messages on ``topic`` as (schema name, log time [ns], decoded JSON)."""
+    out = []
+    with open(path, "rb") as fh:
+        for schema, _channel, message in make_reader(fh).iter_messages(topics=[topic]):
+            name = schema.name if schema is not None else ""
+            out.append((name, message.log_time, json.loads(message.data)))
+    return out

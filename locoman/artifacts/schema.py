@@ -1,0 +1,111 @@
+"""Artifact schemas: name, version, producing stage and typed fields.
+
+A schema is checked on write and on read. Shapes may use symbols (``"N"``): every field that
+uses the same symbol must agree on its size within one artifact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from locoman.errors import ArtifactError
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """One field of an artifact.
+
+    Attributes:
+        name: Key in the file.
+        dtype: NumPy dtype name for arrays (``float64``, ``int64``, ``bool``, ``str``), or a
+            JSON type (``object``, ``list``, ``str``, ``number``) for JSON artifacts.
+        shape: Array shape; ints are fixed sizes, strings are symbols. Empty for JSON fields.
+        unit: SI unit, ``-`` when dimensionless, ``mixed`` when the doc says per entry.
+        doc: What the field holds.
+    """
+
+    name: str
+    dtype: str
+    shape: tuple[int | str, ...] = ()
+    unit: str = "-"
+    doc: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class ArtifactSchema:
+    """A typed artifact.
+
+    Attributes:
+        name: e.g. ``scene.objects``.
+        version: Bumped on every incompatible change.
+        producer: The DVC stage that writes it (named in errors so users know what to rerun).
+        fields: Its fields.
+    """
+
+    name: str
+    version: int
+    producer: str
+    fields: tuple[Field, ...]
+
+    def error(self, path: Any, what: str) -> ArtifactError:
+        """An error naming this artifact, its file and the stage that produces it."""
+        return ArtifactError(
+            f"artifact {self.name!r} v{self.version} at {path}: {what} "
+            f"(produced by stage {self.producer!r}; rerun it with `dvc repro {self.producer}`)"
+        )
+
+    def check_arrays(self, arrays: Mapping[str, np.ndarray], path: Any) -> None:
+        """Check presence, dtype and shape of every field; no extra keys allowed."""
+        extra = sorted(set(arrays) - {f.name for f in self.fields})
+        if extra:
+            raise self.error(path, f"unexpected fields {extra}")
+        sizes: dict[str, int] = {}
+        for f in self.fields:
+            if f.name not in arrays:
+                raise self.error(path, f"field {f.name!r} is missing")
+            arr = np.asarray(arrays[f.name])
+            if not _dtype_ok(arr.dtype, f.dtype):
+                raise self.error(path, f"field {f.name!r} has dtype {arr.dtype}, expected {f.dtype}")
+            if arr.ndim != len(f.shape):
+                raise self.error(
+                    path, f"field {f.name!r} has shape {arr.shape}, expected {f.shape}"
+                )
+            for got, want in zip(arr.shape, f.shape, strict=True):
+                if isinstance(want, int) and got != want:
+                    raise self.error(
+                        path, f"field {f.name!r} has shape {arr.shape}, expected {f.shape}"
+                    )
+                if isinstance(want, str) and sizes.setdefault(want, got) != got:
+                    raise self.error(
+                        path,
+                        f"field {f.name!r} has {want} = {got}, other fields have {sizes[want]}",
+                    )
+
+    def check_json(self, data: Mapping[str, Any], path: Any) -> None:
+        """Check presence and JSON type of every top-level field; no extra keys allowed."""
+        extra = sorted(set(data) - {f.name for f in self.fields})
+        if extra:
+            raise self.error(path, f"unexpected fields {extra}")
+        types = {"object": dict, "list": list, "str": str, "number": (int, float), "bool": bool}
+        for f in self.fields:
+            if f.name not in data:
+                raise self.error(path, f"field {f.name!r} is missing")
+            if not isinstance(data[f.name], types[f.dtype]):
+                got = type(data[f.name]).__name__
+                raise self.error(path, f"field {f.name!r} is a {got}, expected {f.dtype}")
+
+
+def _dtype_ok(got: np.dtype, want: str) -> bool:
+    if want == "str":
+        return got.kind == "U"
+    if want == "bool":
+        return got.kind == "b"
+    if want.startswith("int"):
+        return got.kind in "iu"
+    if want.startswith("float"):
+        return got.kind == "f"
+    return got == np.dtype(want)

@@ -1,0 +1,57 @@
+"""Compose ``conf/`` into ``params.yaml``, exactly as ``dvc exp run -S`` does.
+
+Usage: ``python -m locoman.config.compose [override ...] [--out FILE] [--check]``.
+``--check`` compares instead of writing and exits 1 when the file is stale.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import yaml
+from dvc.utils.hydra import compose_and_dump
+
+from locoman.config.load import validate
+from locoman.errors import ConfigError
+
+CONF_DIR = Path("conf")
+
+
+def compose_text(overrides: list[str], conf_dir: Path = CONF_DIR) -> str:
+    """The composed ``params.yaml`` text, validated against the typed schema."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "params.yaml"
+        compose_and_dump(str(out), str(conf_dir.resolve()), None, "config", "", overrides)
+        text = out.read_text()
+    validate(yaml.safe_load(text))
+    return text
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. scenario.box_mass=2.5")
+    parser.add_argument("--out", default="params.yaml")
+    parser.add_argument("--check", action="store_true", help="fail if --out is stale")
+    args = parser.parse_args(argv)
+    try:
+        text = compose_text(args.overrides)
+    except ConfigError as exc:
+        print(f"locoman: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    if args.check:
+        if not out.is_file() or out.read_text() != text:
+            print(f"{out} is stale against conf/; run `make params`", file=sys.stderr)
+            return 1
+        return 0
+    from locoman.artifacts.io import write_text_atomic
+
+    write_text_atomic(out, text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,218 @@
+"""Typed configuration: one dataclass per section of ``conf/`` (and so of ``params.yaml``).
+
+Every value has a type, and ranges are checked by :func:`locoman.config.load.validate`, so a
+wrong key, type or value fails at start-up with the key's full path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from omegaconf import MISSING
+
+
+@dataclass
+class ObjectCfg:
+    """An object or a piece of environment.
+
+    Attributes:
+        kind: Registered object kind (``locoman.scene.objects.OBJECT_KINDS``).
+        size: Kind-specific extents [m]; a box is (length x, width y, height z).
+        pos: Position (x, y, z) [m] of the object's origin: the centre of its bottom face.
+        yaw: Rotation about world z [rad].
+        mass: [kg]; ``null`` makes the object static (welded to the world).
+        friction: Sliding friction coefficient [-].
+        rgba: Colour, each channel in [0, 1].
+    """
+
+    kind: str = MISSING
+    size: list[float] = MISSING
+    pos: list[float] = MISSING
+    yaw: float = 0.0
+    mass: float | None = None
+    friction: float = 0.8
+    rgba: list[float] = field(default_factory=lambda: [0.6, 0.45, 0.3, 1.0])
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if len(self.pos) != 3:
+            errors.append(("pos", f"needs 3 values (x, y, z) [m], got {len(self.pos)}"))
+        if any(s <= 0.0 for s in self.size):
+            errors.append(("size", f"every extent must be > 0 m, got {self.size}"))
+        if self.mass is not None and self.mass <= 0.0:
+            errors.append(("mass", f"must be > 0 kg or null (static), got {self.mass}"))
+        if not 0.0 < self.friction <= 5.0:
+            errors.append(("friction", f"must be in (0, 5], got {self.friction}"))
+        if len(self.rgba) != 4 or any(not 0.0 <= c <= 1.0 for c in self.rgba):
+            errors.append(("rgba", f"needs 4 values in [0, 1], got {self.rgba}"))
+        return errors
+
+
+@dataclass
+class PlacementCfg:
+    """Where a subtask puts an object: position of its origin [m] and yaw [rad]."""
+
+    pos: list[float] = MISSING
+    yaw: float = 0.0
+
+    def check(self) -> list[tuple[str, str]]:
+        if len(self.pos) != 3:
+            return [("pos", f"needs 3 values (x, y, z) [m], got {len(self.pos)}")]
+        return []
+
+
+@dataclass
+class SubtaskCfg:
+    """One step of the high-level plan, in the paper's prompt style.
+
+    Attributes:
+        prompt: e.g. "pick up the box from the floor"; its first word is the predicate.
+        object: Name of the object the subtask acts on.
+        contacts: End effectors in contact with the object during the subtask
+            (``left_hand``, ``right_hand``, ``left_foot``, ``right_foot``, ``gripper``).
+        target: Placement of ``object`` at the end of the subtask, if it moves it.
+    """
+
+    prompt: str = MISSING
+    object: str = MISSING
+    contacts: list[str] = field(default_factory=list)
+    target: PlacementCfg | None = None
+
+    def check(self) -> list[tuple[str, str]]:
+        allowed = {"left_hand", "right_hand", "left_foot", "right_foot", "gripper"}
+        bad = sorted(set(self.contacts) - allowed)
+        if bad:
+            return [("contacts", f"unknown end effectors {bad}; use {sorted(allowed)}")]
+        if not self.prompt.strip():
+            return [("prompt", "must not be empty")]
+        return []
+
+
+@dataclass
+class RobotStartCfg:
+    """Initial robot pose on the floor: base position (x, y) [m] and yaw [rad]."""
+
+    xy: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    yaw: float = 0.0
+
+    def check(self) -> list[tuple[str, str]]:
+        if len(self.xy) != 2:
+            return [("xy", f"needs 2 values (x, y) [m], got {len(self.xy)}")]
+        return []
+
+
+@dataclass
+class ScenarioCfg:
+    """A scenario: robot, objects, environment and the high-level plan.
+
+    Attributes:
+        robot: ``g1`` (paper A) or ``mobile_manipulator`` (paper B).
+        description: One line for people.
+        start: Initial robot pose. For the mobile manipulator this is the base frame Sigma_B,
+            which tracks the demonstrator's pelvis (paper B, q_b = [x_pe, y_pe, phi_pe]).
+        arm_start: Mobile manipulator only: initial end-effector position [m] (world).
+        objects: Objects and environment pieces by name. ``floor`` is always present.
+        plan: Ordered subtasks.
+    """
+
+    robot: str = MISSING
+    description: str = ""
+    start: RobotStartCfg = field(default_factory=RobotStartCfg)
+    arm_start: list[float] | None = None
+    objects: dict[str, ObjectCfg] = field(default_factory=dict)
+    plan: list[SubtaskCfg] = field(default_factory=list)
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.robot not in ("g1", "mobile_manipulator"):
+            errors.append(("robot", f"must be g1 or mobile_manipulator, got {self.robot!r}"))
+        for i, sub in enumerate(self.plan):
+            if sub.object not in self.objects:
+                errors.append(
+                    (f"plan[{i}].object", f"{sub.object!r} is not one of {sorted(self.objects)}")
+                )
+            elif sub.target is not None and self.objects[sub.object].mass is None:
+                errors.append((f"plan[{i}].target", f"{sub.object!r} is static; give it a mass"))
+        if self.robot == "mobile_manipulator" and (
+            self.arm_start is None or len(self.arm_start) != 3
+        ):
+            errors.append(("arm_start", "the mobile manipulator needs (x, y, z) [m]"))
+        return errors
+
+
+@dataclass
+class ScenarioKnobsCfg:
+    """Paper A's sweep knobs (Sec. V-C), applied to every humanoid scenario.
+
+    Attributes:
+        box_mass: Mass of the object named ``box`` [kg] (paper: 2.5, 5.0, 7.5).
+        initial_yaw: Initial robot yaw [rad] (paper: 0, +-0.6, +-1.2).
+    """
+
+    box_mass: float = 5.0
+    initial_yaw: float = 0.0
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if not 0.0 < self.box_mass <= 50.0:
+            errors.append(("box_mass", f"must be in (0, 50] kg, got {self.box_mass}"))
+        if abs(self.initial_yaw) > 3.1416:
+            errors.append(("initial_yaw", f"must be in [-pi, pi] rad, got {self.initial_yaw}"))
+        return errors
+
+
+@dataclass
+class SceneCheckCfg:
+    """Tolerances of the scene stage's validity checks.
+
+    Attributes:
+        penetration_tol: Largest penetration allowed between any two bodies at start [m].
+        foot_ground_tol: Largest gap or penetration between a G1 sole and the floor [m].
+        render_width: Overview image width [px].
+        render_height: Overview image height [px].
+    """
+
+    penetration_tol: float = 1e-3
+    foot_ground_tol: float = 2e-3
+    render_width: int = 640
+    render_height: int = 480
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.penetration_tol < 0.0 or self.foot_ground_tol < 0.0:
+            errors.append(("penetration_tol", "tolerances must be >= 0 m"))
+        if not (16 <= self.render_width <= 4096 and 16 <= self.render_height <= 4096):
+            errors.append(("render_width", "image size must be within [16, 4096] px"))
+        return errors
+
+
+@dataclass
+class RootCfg:
+    """The whole composed configuration (``params.yaml``)."""
+
+    seed: int = 0
+    scenario: ScenarioKnobsCfg = field(default_factory=ScenarioKnobsCfg)
+    scenarios: dict[str, ScenarioCfg] = field(default_factory=dict)
+    scene: SceneCheckCfg = field(default_factory=SceneCheckCfg)
+
+    def check(self) -> list[tuple[str, str]]:
+        return [] if self.seed >= 0 else [("seed", "must be >= 0")]
+
+
+def walk_checks(node: Any, path: str = "") -> list[tuple[str, str]]:
+    """Run every ``check()`` in a config tree; return (full key path, message) pairs."""
+    errors: list[tuple[str, str]] = []
+    if hasattr(node, "check"):
+        errors += [(f"{path}.{key}" if path else key, msg) for key, msg in node.check()]
+    children: dict[str, Any] = {}
+    if hasattr(node, "__dataclass_fields__"):
+        children = {name: getattr(node, name) for name in node.__dataclass_fields__}
+    elif isinstance(node, dict):
+        children = {str(k): v for k, v in node.items()}
+    elif isinstance(node, list):
+        children = {f"[{i}]": v for i, v in enumerate(node)}
+    for key, child in children.items():
+        sub = f"{path}{key}" if key.startswith("[") else (f"{path}.{key}" if path else key)
+        errors += walk_checks(child, sub)
+    return errors

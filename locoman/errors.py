@@ -1,0 +1,23 @@
+"""Exception hierarchy: every error says what went wrong and what to do about it."""
+
+from __future__ import annotations
+
+
+class LocomanError(Exception):
+    """Base class of every error raised on purpose by locoman."""
+
+
+class ConfigError(LocomanError):
+    """A configuration key is unknown, missing, of the wrong type or out of range."""
+
+
+class ArtifactError(LocomanError):
+    """An artifact is missing, corrupt, of the wrong schema version or has a wrong field."""
+
+
+class ModelError(LocomanError):
+    """A robot or object model cannot be built (missing package file, bad geometry)."""
+
+
+class SceneError(LocomanError):
+    """A scenario is infeasible as configured (penetrating bodies, robot not standing, ...)."""
