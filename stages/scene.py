@@ -26,7 +26,9 @@ def main(scenario: str) -> None:
     start = time.perf_counter()
     scene = build_scene(scenario, sc, (cfg.scene.render_width, cfg.scene.render_height))
     model, qpos = write_scene(out, scene)
-    report = check_scene(model, qpos, sc.robot, cfg.scene.penetration_tol, cfg.scene.foot_ground_tol)
+    report = check_scene(
+        model, qpos, sc.robot, cfg.scene.penetration_tol, cfg.scene.foot_ground_tol
+    )
     image = render_camera(model, qpos, "overview", cfg.scene.render_width, cfg.scene.render_height)
     write_png(out / "overview.png", image)
     write_json_atomic(

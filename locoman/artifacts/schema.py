@@ -69,7 +69,9 @@ class ArtifactSchema:
                 raise self.error(path, f"field {f.name!r} is missing")
             arr = np.asarray(arrays[f.name])
             if not _dtype_ok(arr.dtype, f.dtype):
-                raise self.error(path, f"field {f.name!r} has dtype {arr.dtype}, expected {f.dtype}")
+                raise self.error(
+                    path, f"field {f.name!r} has dtype {arr.dtype}, expected {f.dtype}"
+                )
             if arr.ndim != len(f.shape):
                 raise self.error(
                     path, f"field {f.name!r} has shape {arr.shape}, expected {f.shape}"

@@ -53,7 +53,10 @@ def build_scene(name: str, cfg: ScenarioCfg, render_size: tuple[int, int] = (640
     spec.visual.global_.offwidth, spec.visual.global_.offheight = render_size
     spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
     spec.worldbody.add_geom(
-        name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], rgba=[0.82, 0.82, 0.8, 1],
+        name=FLOOR,
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[0, 0, 0.05],
+        rgba=[0.82, 0.82, 0.8, 1],
         friction=[1.0, 0.005, 0.0001],
     )
     spec.worldbody.add_light(pos=[0, 0, 4], dir=[0, 0, -1], diffuse=[0.6, 0.6, 0.6])
@@ -117,7 +120,11 @@ def _add_overview_camera(spec: mujoco.MjSpec, cfg: ScenarioCfg) -> None:
     distance = max(3.0, 1.4 * span + 1.5)
     azimuth, elevation = np.deg2rad(-140.0), np.deg2rad(35.0)
     offset = distance * np.array(
-        [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)]
+        [
+            np.cos(elevation) * np.cos(azimuth),
+            np.cos(elevation) * np.sin(azimuth),
+            np.sin(elevation),
+        ]
     )
     target = centre + np.array([0.0, 0.0, 0.5])
     eye = target + offset
@@ -125,9 +132,7 @@ def _add_overview_camera(spec: mujoco.MjSpec, cfg: ScenarioCfg) -> None:
     right = np.cross(forward, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
-    spec.worldbody.add_camera(
-        name="overview", pos=eye.tolist(), xyaxes=[*right, *up], fovy=50.0
-    )
+    spec.worldbody.add_camera(name="overview", pos=eye.tolist(), xyaxes=[*right, *up], fovy=50.0)
 
 
 def _initial_qpos(model: mujoco.MjModel, cfg: ScenarioCfg) -> np.ndarray:

@@ -76,8 +76,11 @@ def check_scene(
     gaps: tuple[float, ...] = ()
     if robot == "g1":
         gaps = tuple(_sole_gap(model, data, link) for link in g1.FOOT_LINKS)
-        bad = [f"{link}: {gap:+.4f} m" for link, gap in zip(g1.FOOT_LINKS, gaps, strict=True)
-               if abs(gap) > foot_ground_tol]
+        bad = [
+            f"{link}: {gap:+.4f} m"
+            for link, gap in zip(g1.FOOT_LINKS, gaps, strict=True)
+            if abs(gap) > foot_ground_tol
+        ]
         if bad:
             raise SceneError(f"the G1 does not stand on the floor: {', '.join(bad)}")
     moved = _settle(model, qpos)

@@ -86,8 +86,14 @@ STANDING_JOINTS: Mapping[str, float] = {
 
 FOOT_BOX_THICKNESS = 0.02  # [m]
 _NO_COLLISION_LINKS = frozenset(
-    {"left_ankle_pitch_link", "right_ankle_pitch_link", "waist_yaw_link", "waist_roll_link",
-     "logo_link", "pelvis_contour_link"}
+    {
+        "left_ankle_pitch_link",
+        "right_ankle_pitch_link",
+        "waist_yaw_link",
+        "waist_roll_link",
+        "logo_link",
+        "pelvis_contour_link",
+    }
 )
 #: Collision-geom group, so renderers and penetration queries can tell them from visuals.
 COLLISION_GROUP = 3
@@ -209,8 +215,8 @@ def fit_capsule(vertices: np.ndarray) -> CapsuleFit:
     """Capsule enclosing ``vertices`` (n, 3) [m].
 
     The axis is the principal direction of the vertex cloud; the radius is the largest
-    distance of a vertex from the axis, and the cylinder is long enough for the end caps to
-    reach the extreme vertices along the axis.
+    distance of a vertex from the axis, and the cylinder is just long enough for the end caps
+    to contain every vertex.
     """
     centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
     local = vertices - centre
@@ -222,7 +228,9 @@ def fit_capsule(vertices: np.ndarray) -> CapsuleFit:
     centre = centre + offset * axis
     radial = np.linalg.norm(local - np.outer(local @ axis, axis), axis=1)
     radius = float(radial.max())
-    half_length = float(max(0.0, np.abs(t).max() - radius))
+    # Each vertex is inside the end cap once the cylinder reaches |t| - sqrt(R^2 - r^2).
+    cap_reach = np.abs(t) - np.sqrt(np.maximum(radius**2 - radial**2, 0.0))
+    half_length = float(max(0.0, cap_reach.max()))
     quat = np.zeros(4)
     mujoco.mju_quatZ2Vec(quat, axis)
     return CapsuleFit(centre, quat, radius, half_length)

@@ -82,7 +82,9 @@ def standing_pelvis_height() -> float:
         if model.body(model.geom_bodyid[gid]).name not in FOOT_LINKS:
             continue
         mesh = model.geom_dataid[gid]
-        verts = model.mesh_vert[model.mesh_vertadr[mesh] : model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+        verts = model.mesh_vert[
+            model.mesh_vertadr[mesh] : model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]
+        ]
         world = verts @ data.geom_xmat[gid].reshape(3, 3).T + data.geom_xpos[gid]
         lowest = min(lowest, float(world[:, 2].min()))
     return -lowest

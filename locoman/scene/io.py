@@ -24,8 +24,14 @@ OBJECTS = ArtifactSchema(
     "scene.objects",
     1,
     "scene",
-    (Field("objects", "object", doc="name -> kind, size_m, pos_m, quat_wxyz, mass_kg, movable, "
-           "friction, primitives, contact_patches (object frame, [m])"),),
+    (
+        Field(
+            "objects",
+            "object",
+            doc="name -> kind, size_m, pos_m, quat_wxyz, mass_kg, movable, "
+            "friction, primitives, contact_patches (object frame, [m])",
+        ),
+    ),
 )
 PLAN = ArtifactSchema(
     "scene.plan",
@@ -42,8 +48,13 @@ STATE = ArtifactSchema(
     1,
     "scene",
     (
-        Field("qpos", "float64", ("nq",), "mixed", "MuJoCo qpos of keyframe 'home' ([m], [rad], "
-              "quaternions w, x, y, z)"),
+        Field(
+            "qpos",
+            "float64",
+            ("nq",),
+            "mixed",
+            "MuJoCo qpos of keyframe 'home' ([m], [rad], quaternions w, x, y, z)",
+        ),
         Field("body_names", "str", ("nbody",), "-", "MuJoCo body names"),
         Field("body_pos", "float64", ("nbody", 3), "m", "world position of each body"),
         Field("body_quat_wxyz", "float64", ("nbody", 4), "-", "world orientation of each body"),
@@ -89,8 +100,10 @@ def load_scene_model(scene_dir: str | Path) -> mujoco.MjModel:
     """Compile the MJCF written by the scene stage."""
     path = Path(scene_dir) / MJCF_FILE
     if not path.is_file():
-        raise ArtifactError(f"scene MJCF {path} is missing (produced by stage 'scene'; "
-                            "rerun it with `dvc repro scene`)")
+        raise ArtifactError(
+            f"scene MJCF {path} is missing (produced by stage 'scene'; "
+            "rerun it with `dvc repro scene`)"
+        )
     try:
         return mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:

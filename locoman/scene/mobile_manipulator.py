@@ -18,12 +18,17 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import warnings
 
 import mujoco
 import numpy as np
 
 from locoman.errors import SceneError
 from locoman.scene import assets
+
+# The Panda's names are unique in the scene, so it is attached without a prefix; the MJCF this
+# writes reloads (tests/test_scene_models.py), so MuJoCo's warning about it is noise.
+warnings.filterwarnings("ignore", message="Attaching a spec with an empty prefix")
 
 ARM_OFFSET_X = 0.3875  # [m] panda_link0 ahead of the base frame (paper B, Sec. IV-B)
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -33,7 +38,6 @@ EE_SITE = "ee_site"
 #: A comfortable arm posture [rad] (Franka's "ready" pose).
 ARM_READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 GRIPPER_OPEN = 0.04  # [m] finger joint opening (each finger)
-_ATTACH_PREFIX = "attached_panda/"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,13 +92,7 @@ def mobile_manipulator_mjspec(geometry: MobileBaseGeometry | None = None) -> muj
         mass=5.0,
     )
     frame = base.add_frame(pos=[ARM_OFFSET_X, 0, geo.mount_height])
-    # MuJoCo warns about attaching without a prefix; the Panda's names are unique here, so
-    # attach with a temporary prefix and strip it to keep the URDF's names.
-    spec.attach(_panda_spec(), frame=frame, prefix=_ATTACH_PREFIX)
-    for element in (*spec.bodies, *spec.joints, *spec.geoms, *spec.meshes):
-        element.name = element.name.removeprefix(_ATTACH_PREFIX)
-    for geom in spec.geoms:
-        geom.meshname = geom.meshname.removeprefix(_ATTACH_PREFIX)
+    spec.attach(_panda_spec(), frame=frame, prefix="")
     hand = spec.body("panda_hand")
     hand.add_site(name=EE_SITE, pos=[0, 0, 0.1034], size=[0.01, 0, 0])
     spec.add_equality(
@@ -124,10 +122,7 @@ def mobile_manipulator_mjspec(geometry: MobileBaseGeometry | None = None) -> muj
 
 def _panda_spec() -> mujoco.MjSpec:
     urdf = assets.urdf_text(assets.PANDA_URDF, mesh_root="")
-    ext = (
-        '<mujoco><compiler fusestatic="false" discardvisual="true" strippath="false"/>'
-        "</mujoco>"
-    )
+    ext = '<mujoco><compiler fusestatic="false" discardvisual="true" strippath="false"/></mujoco>'
     urdf = re.sub(r"(<robot[^>]*>)", lambda m: m.group(1) + ext, urdf, count=1)
     spec = mujoco.MjSpec.from_string(urdf)
     spec.meshdir = str(assets.robots_dir())

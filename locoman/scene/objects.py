@@ -89,7 +89,9 @@ def cylinder_geometry(size: Sequence[float]) -> ObjectGeometry:
     r, h = _expect(size, 2, CYLINDER)
     side = ContactPatch("side", (0.0, 0.0, h / 2), (1.0, 0.0, 0.0), (r, h / 2))
     top = ContactPatch("top", (0.0, 0.0, h), (0.0, 0.0, 1.0), (r, r))
-    return ObjectGeometry((Primitive(CYLINDER, (r, h / 2), (0.0, 0.0, h / 2), "body"),), (side, top))
+    return ObjectGeometry(
+        (Primitive(CYLINDER, (r, h / 2), (0.0, 0.0, h / 2), "body"),), (side, top)
+    )
 
 
 def table_geometry(size: Sequence[float]) -> ObjectGeometry:
@@ -156,11 +158,18 @@ def trolley_geometry(size: Sequence[float]) -> ObjectGeometry:
     for i, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
         xy = (sx * (lx / 2 - r), sy * (ly / 2 - r))
         parts.append(Primitive(SPHERE, (r,), (xy[0], xy[1], r), f"wheel_{i}"))
-        parts.append(Primitive(BOX, (0.015, 0.015, strut_h), (xy[0], xy[1], r + strut_h), f"strut_{i}"))
+        parts.append(
+            Primitive(BOX, (0.015, 0.015, strut_h), (xy[0], xy[1], r + strut_h), f"strut_{i}")
+        )
     post_h = TROLLEY_HANDLE_RISE / 2
     for sy, name in ((1, "post_left"), (-1, "post_right")):
         parts.append(
-            Primitive(BOX, (0.015, 0.015, post_h), (-lx / 2 + 0.015, sy * (ly / 2 - 0.015), lz + post_h), name)
+            Primitive(
+                BOX,
+                (0.015, 0.015, post_h),
+                (-lx / 2 + 0.015, sy * (ly / 2 - 0.015), lz + post_h),
+                name,
+            )
         )
     bar_z = lz + TROLLEY_HANDLE_RISE
     parts.append(Primitive(BOX, (0.015, ly / 2, 0.015), (-lx / 2 + 0.015, 0.0, bar_z), "handle"))
@@ -186,7 +195,9 @@ def object_geometry(kind: str, size: Sequence[float]) -> ObjectGeometry:
     try:
         build = OBJECT_KINDS[kind]
     except KeyError:
-        raise ConfigError(f"unknown object kind {kind!r}; registered: {sorted(OBJECT_KINDS)}") from None
+        raise ConfigError(
+            f"unknown object kind {kind!r}; registered: {sorted(OBJECT_KINDS)}"
+        ) from None
     return build(size)
 
 

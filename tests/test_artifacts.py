@@ -1,0 +1,122 @@
+"""Typed artifacts: round trips, determinism, and the errors for bad files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from locoman.artifacts import ArtifactSchema, Field, read_json, read_npz, write_json, write_npz
+from locoman.artifacts.mcap_io import read_json_messages, write_frame_transforms
+from locoman.errors import ArtifactError
+
+TRAJ = ArtifactSchema(
+    "test.trajectory",
+    2,
+    "solve",
+    (
+        Field("q", "float64", ("N", 3), "m"),
+        Field("dt", "float64", ("N",), "s"),
+        Field("names", "str", (3,)),
+    ),
+)
+PLAN = ArtifactSchema("test.plan", 1, "scene", (Field("steps", "list"), Field("robot", "str")))
+
+
+def _arrays(n: int = 4) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    return {
+        "q": rng.normal(size=(n, 3)),
+        "dt": np.full(n, 0.02),
+        "names": np.array(["a", "b", "c"]),
+    }
+
+
+def test_npz_round_trip_is_exact_and_deterministic(tmp_path):
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    write_npz(a, TRAJ, _arrays())
+    write_npz(b, TRAJ, _arrays())
+    assert a.read_bytes() == b.read_bytes()
+    back = read_npz(a, TRAJ)
+    for key, value in _arrays().items():
+        np.testing.assert_array_equal(back[key], value)
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_missing_artifact_names_the_producer(tmp_path):
+    with pytest.raises(ArtifactError, match=r"test.trajectory.*missing.*stage 'solve'"):
+        read_npz(tmp_path / "none.npz", TRAJ)
+
+
+def test_corrupt_artifact_is_reported(tmp_path):
+    path = tmp_path / "bad.npz"
+    write_npz(path, TRAJ, _arrays())
+    path.write_bytes(path.read_bytes()[:50])
+    with pytest.raises(ArtifactError, match="corrupt"):
+        read_npz(path, TRAJ)
+    js = tmp_path / "bad.json"
+    js.write_text("{not json")
+    with pytest.raises(ArtifactError, match="corrupt"):
+        read_json(js, PLAN)
+
+
+def test_wrong_schema_version_is_reported(tmp_path):
+    path = tmp_path / "t.npz"
+    old = ArtifactSchema("test.trajectory", 1, "solve", TRAJ.fields)
+    write_npz(path, old, _arrays())
+    with pytest.raises(ArtifactError, match="version 1, this code reads 2"):
+        read_npz(path, TRAJ)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"q": np.zeros((4, 2))}, "field 'q' has shape"),
+        ({"dt": np.zeros(5)}, "field 'dt' has N = 5"),
+        ({"q": np.zeros((4, 3), dtype=np.int64)}, "field 'q' has dtype"),
+        ({"extra": np.zeros(1)}, "unexpected fields"),
+    ],
+)
+def test_wrong_fields_are_named(tmp_path, change, message):
+    with pytest.raises(ArtifactError, match=message):
+        write_npz(tmp_path / "t.npz", TRAJ, {**_arrays(), **change})
+
+
+def test_missing_field_on_read_is_named(tmp_path):
+    path = tmp_path / "t.npz"
+    fewer = ArtifactSchema("test.trajectory", 2, "solve", TRAJ.fields[:2])
+    write_npz(path, fewer, {k: v for k, v in _arrays().items() if k != "names"})
+    with pytest.raises(ArtifactError, match="field 'names' is missing"):
+        read_npz(path, TRAJ)
+
+
+def test_npz_never_unpickles(tmp_path):
+    path = tmp_path / "obj.npz"
+    np.savez(path, q=np.array([object()], dtype=object))
+    with pytest.raises(ArtifactError, match="corrupt"):
+        read_npz(path, TRAJ)
+
+
+def test_json_round_trip_and_type_check(tmp_path):
+    path = tmp_path / "plan.json"
+    write_json(path, PLAN, {"steps": [1, 2], "robot": "g1"})
+    assert read_json(path, PLAN) == {"steps": [1, 2], "robot": "g1"}
+    with pytest.raises(ArtifactError, match="field 'robot' is a int, expected str"):
+        write_json(path, PLAN, {"steps": [], "robot": 3})
+
+
+def test_frame_transforms_mcap_round_trip(tmp_path):
+    path = tmp_path / "traj.mcap"
+    t = np.array([0.0, 0.02, 0.04])
+    pos = np.c_[t, 2 * t, 3 * t]
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (3, 1))
+    write_frame_transforms(path, t, {"pelvis": (pos, quat), "box": (pos + 1, quat)})
+    messages = read_json_messages(path, "/tf")
+    assert [m[0] for m in messages] == ["foxglove.FrameTransforms"] * 3
+    assert messages[1][1] == 20_000_000
+    second = messages[2][2]["transforms"]
+    assert [tr["child_frame_id"] for tr in second] == ["pelvis", "box"]
+    assert second[1]["translation"] == pytest.approx({"x": 1.04, "y": 1.08, "z": 1.12})
+    assert second[0]["rotation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+    copy = tmp_path / "again.mcap"
+    write_frame_transforms(copy, t, {"pelvis": (pos, quat), "box": (pos + 1, quat)})
+    assert copy.read_bytes() == path.read_bytes()

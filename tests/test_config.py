@@ -1,0 +1,64 @@
+"""Configuration: params.yaml is fresh, overrides compose, bad keys fail naming the key."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from locoman.config import validate
+from locoman.config.compose import compose_text
+from locoman.errors import ConfigError
+
+
+@pytest.fixture(scope="module")
+def raw(repo):
+    return yaml.safe_load((repo / "params.yaml").read_text())
+
+
+def test_committed_params_is_not_stale(repo, monkeypatch):
+    monkeypatch.chdir(repo)
+    assert compose_text([]) == (repo / "params.yaml").read_text(), (
+        "params.yaml is stale against conf/; run `make params`"
+    )
+
+
+def test_box_mass_override_reaches_every_humanoid_scenario(repo, monkeypatch):
+    monkeypatch.chdir(repo)
+    cfg = validate(yaml.safe_load(compose_text(["scenario.box_mass=2.5"])))
+    for name in ("tiny", "s1_basket", "s2_trolley"):
+        assert cfg.scenarios[name].objects["box"].mass == 2.5
+    assert cfg.scenarios["mm_pick_place"].objects["bottle"].mass == 0.3
+
+
+def test_unknown_override_key_fails(repo, monkeypatch):
+    monkeypatch.chdir(repo)
+    with pytest.raises(Exception, match="box_mas"):
+        compose_text(["scenario.box_mas=2.5"])
+
+
+def test_unknown_key_is_named(raw):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["scenarios"]["tiny"]["objects"]["box"]["colour"] = "red"
+    with pytest.raises(ConfigError, match=r"scenarios\.tiny\.objects\.box\.colour"):
+        validate(bad)
+
+
+def test_wrong_type_is_named(raw):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["scenario"]["box_mass"] = "heavy"
+    with pytest.raises(ConfigError, match=r"scenario\.box_mass"):
+        validate(bad)
+
+
+def test_out_of_range_value_is_named(raw):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["scenarios"]["s1_basket"]["objects"]["box"]["mass"] = -1.0
+    with pytest.raises(ConfigError, match=r"scenarios\.s1_basket\.objects\.box\.mass"):
+        validate(bad)
+
+
+def test_plan_must_name_known_objects(raw):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["scenarios"]["tiny"]["plan"][1]["object"] = "crate"
+    with pytest.raises(ConfigError, match=r"scenarios\.tiny\.plan\[1\]\.object"):
+        validate(bad)

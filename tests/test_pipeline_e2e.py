@@ -1,0 +1,66 @@
+"""The DVC pipeline end to end on the tiny scenario, from a copy of the working tree."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+
+def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ)
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
+    return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def workdir(repo, tmp_path_factory) -> Path:
+    """A fresh checkout-like copy: tracked and unignored files only, no data outputs."""
+    files = subprocess.run(
+        ["git", "ls-files", "--cached", "--others", "--exclude-standard"],
+        cwd=repo,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    dst = tmp_path_factory.mktemp("pipeline")
+    for rel in files:
+        src = repo / rel
+        if src.is_file() and not rel.startswith("data/"):
+            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst / rel)
+    assert _run(["git", "init", "-q"], dst).returncode == 0
+    return dst
+
+
+def test_tiny_scene_stage_runs_then_is_cached(workdir):
+    dvc = [sys.executable, "-m", "dvc"]
+    first = _run([*dvc, "repro", "scene@tiny"], workdir)
+    assert first.returncode == 0, first.stderr
+    out = workdir / "data" / "tiny" / "scene"
+    for name in ("scene.xml", "objects.json", "plan.json", "initial_state.npz", "overview.png"):
+        assert (out / name).is_file(), name
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["max_initial_penetration_m"] <= 1e-3
+    second = _run([*dvc, "repro", "scene@tiny"], workdir)
+    assert second.returncode == 0, second.stderr
+    assert "Running stage" not in second.stdout, second.stdout
+
+
+def test_bad_params_fail_at_start_up_naming_the_key(workdir):
+    params = workdir / "params.yaml"
+    original = params.read_text()
+    try:
+        params.write_text(original.replace("box_mass: 5.0", "box_mass: 5.0\n  colour: red", 1))
+        result = _run([sys.executable, "stages/scene.py", "tiny"], workdir)
+        assert result.returncode == 2
+        assert "scenario.colour" in result.stderr
+    finally:
+        params.write_text(original)
