@@ -6,7 +6,6 @@ Usage: python stages/scene.py <scenario>   (reads params.yaml, writes data/<scen
 from __future__ import annotations
 
 import sys
-import time
 
 from locoman.artifacts import write_json_atomic, write_png
 from locoman.config import load_params
@@ -23,7 +22,6 @@ def main(scenario: str) -> None:
     if sc is None:
         raise SystemExit(f"unknown scenario {scenario!r}; known: {sorted(cfg.scenarios)}")
     out = stage_dir(scenario, "scene")
-    start = time.perf_counter()
     scene = build_scene(scenario, sc, (cfg.scene.render_width, cfg.scene.render_height))
     model, qpos = write_scene(out, scene)
     report = check_scene(
@@ -41,7 +39,6 @@ def main(scenario: str) -> None:
             "max_initial_penetration_m": report.max_penetration_m,
             "sole_gap_max_m": max((abs(g) for g in report.sole_gaps_m), default=0.0),
             "settle_displacement_max_m": max(report.settle_displacement_m.values(), default=0.0),
-            "build_seconds": round(time.perf_counter() - start, 3),
         },
     )
 
