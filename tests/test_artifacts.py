@@ -120,3 +120,28 @@ def test_frame_transforms_mcap_round_trip(tmp_path):
     copy = tmp_path / "again.mcap"
     write_frame_transforms(copy, t, {"pelvis": (pos, quat), "box": (pos + 1, quat)})
     assert copy.read_bytes() == path.read_bytes()
+
+
+def test_robot_trajectory_mcap_holds_every_link_pose(tmp_path):
+    import mujoco
+
+    from locoman.scene import g1
+    from locoman.scene.frames import write_trajectory_mcap
+
+    model = g1.g1_mjmodel()
+    q0 = g1.pin_to_mujoco_qpos(g1.q35_to_pin(g1.standing_q35()), model, np.zeros(model.nq))
+    q1 = q0.copy()
+    q1[0] += 0.1
+    path = tmp_path / "traj.mcap"
+    write_trajectory_mcap(path, model, np.array([0.0, 0.5]), np.stack([q0, q1]))
+    messages = read_json_messages(path, "/tf")
+    assert len(messages) == 2
+    frames = {t["child_frame_id"]: t for t in messages[1][2]["transforms"]}
+    assert len(frames) == model.nbody - 1
+    data = mujoco.MjData(model)
+    data.qpos[:] = q1
+    mujoco.mj_kinematics(model, data)
+    hand = frames["left_rubber_hand"]["translation"]
+    np.testing.assert_allclose(
+        [hand["x"], hand["y"], hand["z"]], data.body("left_rubber_hand").xpos, atol=1e-12
+    )
