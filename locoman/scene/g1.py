@@ -5,8 +5,8 @@ inertias agree exactly (checked by ``tests/test_g1_models.py``).
 
 Collision geometry (MuJoCo, used to measure penetration):
     * feet: one box per foot spanning the URDF's four sole contact spheres, 2 cm thick;
-    * limbs, pelvis, torso, head and hands: capsules that MuJoCo fits to each link's mesh
-      (``fitaabb``: the capsule encloses the mesh's axis-aligned bounding box);
+    * limbs, pelvis, torso, head and hands: a capsule (a sphere when the mesh is round)
+      enclosing every vertex of the link's mesh, along its principal axis (:func:`fit_capsule`);
     * shoulders: the URDF's cylinders;
     * tiny links covered by their neighbours (ankle pitch, waist yaw/roll, logo) have none.
 Visual geometry is the URDF meshes, in geom group 1 with collisions disabled.
@@ -110,14 +110,11 @@ def g1_pinocchio_model() -> pin.Model:
     return model
 
 
-def g1_mjspec(prefix: str = "") -> mujoco.MjSpec:
+def g1_mjspec() -> mujoco.MjSpec:
     """MuJoCo spec of the G1: free joint on the pelvis, fitted collision primitives.
 
     Mesh file names are relative to :func:`locoman.scene.assets.robots_dir`, which is set as
     the spec's ``meshdir``; a caller that saves the MJCF elsewhere rewrites ``meshdir``.
-
-    Args:
-        prefix: Prepended to every body, joint and geom name (for scenes with several robots).
     """
     spec = _urdf_spec()
     pelvis = spec.body(BASE_LINK)
@@ -127,12 +124,6 @@ def g1_mjspec(prefix: str = "") -> mujoco.MjSpec:
             continue
         _make_collision_geoms(spec, body)
     _exclude_neighbour_collisions(spec)
-    if prefix:
-        for body in spec.bodies:
-            if body.name != "world":
-                body.name = prefix + body.name
-        for joint in spec.joints:
-            joint.name = prefix + joint.name
     return spec
 
 
@@ -348,23 +339,19 @@ def pin_to_q35(q: np.ndarray) -> np.ndarray:
     return np.concatenate([q[:3], rotations.quat_xyzw_to_rpy(q[3:7]), q[7:]])
 
 
-def mujoco_joint_qpos_indices(model: mujoco.MjModel, prefix: str = "") -> np.ndarray:
+def mujoco_joint_qpos_indices(model: mujoco.MjModel) -> np.ndarray:
     """``qpos`` address of each joint of :data:`G1_JOINT_NAMES` in a compiled MuJoCo model."""
     try:
-        return np.array(
-            [model.joint(prefix + name).qposadr[0] for name in G1_JOINT_NAMES], dtype=int
-        )
+        return np.array([model.joint(name).qposadr[0] for name in G1_JOINT_NAMES], dtype=int)
     except KeyError as exc:
         raise ModelError(f"MuJoCo model has no G1 joint {exc}; was it built by g1_mjspec?") from exc
 
 
-def pin_to_mujoco_qpos(
-    q: np.ndarray, model: mujoco.MjModel, qpos: np.ndarray, prefix: str = ""
-) -> np.ndarray:
+def pin_to_mujoco_qpos(q: np.ndarray, model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     """Write Pinocchio configuration ``q`` into a copy of MuJoCo ``qpos`` (quaternion wxyz)."""
     out = np.array(qpos, dtype=float)
-    adr = model.joint(prefix + "floating_base_joint").qposadr[0]
+    adr = model.joint("floating_base_joint").qposadr[0]
     out[adr : adr + 3] = q[:3]
     out[adr + 3 : adr + 7] = rotations.xyzw_to_wxyz(q[3:7])
-    out[mujoco_joint_qpos_indices(model, prefix)] = q[7:]
+    out[mujoco_joint_qpos_indices(model)] = q[7:]
     return out
