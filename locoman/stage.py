@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -19,14 +20,15 @@ def stage_dir(scenario: str, stage: str) -> Path:
 
 
 def run_stage(main: Callable[..., None], argv: list[str]) -> None:
-    """Run a stage; a :class:`LocomanError` ends it with its message and exit code 2."""
+    """Run a stage; bad arguments or a :class:`LocomanError` end it with a message and exit 2."""
+    try:
+        inspect.signature(main).bind(*argv)
+    except TypeError as exc:
+        doc = (sys.modules[main.__module__].__doc__ or "").strip()
+        print(f"{doc}\n\nbad arguments {argv}: {exc}", file=sys.stderr)
+        sys.exit(2)
     try:
         main(*argv)
     except LocomanError as exc:
         print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)
         sys.exit(2)
-    except TypeError as exc:
-        if "positional argument" in str(exc):
-            print(f"usage: {main.__module__} {main.__doc__ or ''}: {exc}", file=sys.stderr)
-            sys.exit(2)
-        raise

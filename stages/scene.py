@@ -9,6 +9,7 @@ import sys
 
 from locoman.artifacts import write_json_atomic, write_png
 from locoman.config import load_params
+from locoman.errors import ConfigError
 from locoman.scene.builder import build_scene
 from locoman.scene.checks import check_scene
 from locoman.scene.io import write_scene
@@ -20,7 +21,7 @@ def main(scenario: str) -> None:
     cfg = load_params()
     sc = cfg.scenarios.get(scenario)
     if sc is None:
-        raise SystemExit(f"unknown scenario {scenario!r}; known: {sorted(cfg.scenarios)}")
+        raise ConfigError(f"unknown scenario {scenario!r}; known: {sorted(cfg.scenarios)}")
     out = stage_dir(scenario, "scene")
     scene = build_scene(scenario, sc, (cfg.scene.render_width, cfg.scene.render_height))
     model, qpos = write_scene(out, scene)

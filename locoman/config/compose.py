@@ -14,6 +14,7 @@ from pathlib import Path
 import yaml
 from dvc.utils.hydra import compose_and_dump
 
+from locoman.artifacts.io import write_text_atomic
 from locoman.config.load import validate
 from locoman.errors import ConfigError
 
@@ -47,8 +48,6 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{out} is stale against conf/; run `make params`", file=sys.stderr)
             return 1
         return 0
-    from locoman.artifacts.io import write_text_atomic
-
     write_text_atomic(out, text)
     return 0
 

@@ -14,7 +14,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from locoman.config.schema import ScenarioCfg
+from locoman.config.schema import ObjectCfg, ScenarioCfg
 from locoman.scene import g1, mobile_manipulator, rotations
 from locoman.scene.objects import BOX, CYLINDER, SPHERE, object_geometry
 
@@ -70,7 +70,7 @@ def build_scene(name: str, cfg: ScenarioCfg, render_size: tuple[int, int] = (640
     return Scene(spec=spec, objects=table, plan=_plan(cfg))
 
 
-def _add_object(spec: mujoco.MjSpec, name: str, obj: Any) -> dict[str, Any]:
+def _add_object(spec: mujoco.MjSpec, name: str, obj: ObjectCfg) -> dict[str, Any]:
     geometry = object_geometry(obj.kind, obj.size)
     quat = rotations.yaw_quat_wxyz(obj.yaw)
     body = spec.worldbody.add_body(name=name, pos=list(obj.pos), quat=list(quat))
