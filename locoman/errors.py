@@ -21,3 +21,11 @@ class ModelError(LocomanError):
 
 class SceneError(LocomanError):
     """A scenario is infeasible as configured (penetrating bodies, robot not standing, ...)."""
+
+
+class DemoError(LocomanError):
+    """A demonstration file is malformed (bad header, a missing or non-numeric value, ...)."""
+
+
+class SolverError(LocomanError):
+    """A numerical solve failed (a QP reported infeasibility, a factorisation broke down)."""

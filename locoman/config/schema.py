@@ -11,6 +11,8 @@ from typing import Any
 
 from omegaconf import MISSING
 
+from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
+
 
 @dataclass
 class ObjectCfg:
@@ -195,9 +197,15 @@ class RootCfg:
     scenario: ScenarioKnobsCfg = field(default_factory=ScenarioKnobsCfg)
     scenarios: dict[str, ScenarioCfg] = field(default_factory=dict)
     scene: SceneCheckCfg = field(default_factory=SceneCheckCfg)
+    demos: DemosCfg = field(default_factory=DemosCfg)
+    kmp: KmpCfg = field(default_factory=KmpCfg)
+    hqp: HqpCfg = field(default_factory=HqpCfg)
 
     def check(self) -> list[tuple[str, str]]:
-        return [] if self.seed >= 0 else [("seed", "must be >= 0")]
+        errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]
+        if self.demos.scenario not in self.scenarios:
+            errors.append(("demos.scenario", f"{self.demos.scenario!r} is not a scenario"))
+        return errors
 
 
 def walk_checks(node: Any, path: str = "") -> list[tuple[str, str]]:

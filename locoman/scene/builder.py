@@ -50,6 +50,12 @@ def build_scene(name: str, cfg: ScenarioCfg, render_size: tuple[int, int] = (640
         spec = mobile_manipulator.mobile_manipulator_mjspec()
     spec.modelname = name
     spec.option.timestep = 0.002
+    # Grasped objects creep out of pyramidal-cone, impratio-1 contacts under a steady load;
+    # elliptic cones with a high impratio hold them. Stiff velocity actuators on the mobile
+    # base need the implicit integrator.
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth, spec.visual.global_.offheight = render_size
     spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
     spec.worldbody.add_geom(

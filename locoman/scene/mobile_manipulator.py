@@ -142,25 +142,32 @@ def start_qpos(
     model: mujoco.MjModel,
     base_pose: np.ndarray,
     ee_target: np.ndarray,
-    iterations: int = 200,
+    ee_rotation: np.ndarray | None = None,
+    iterations: int = 300,
     damping: float = 1e-3,
+    qpos: np.ndarray | None = None,
 ) -> np.ndarray:
     """Initial ``qpos``: base at ``base_pose``, arm solved so the end effector is at ``ee_target``.
 
-    Damped least-squares position IK on the seven arm joints, started from :data:`ARM_READY`,
-    with joint limits enforced by clipping; the gripper starts open.
+    Damped least-squares IK on the seven arm joints, started from :data:`ARM_READY`, with
+    joint limits enforced by clipping; the gripper starts open. Position only, or the full
+    pose when ``ee_rotation`` is given (the orientation error then counts 1 m per rad).
 
     Args:
         model: A compiled model containing this robot.
         base_pose: Base frame (x [m], y [m], yaw [rad]).
         ee_target: End-effector position (world) [m].
+        ee_rotation: Optional (3, 3) end-effector orientation (world).
         iterations: IK iterations.
         damping: Levenberg-Marquardt damping [m^2].
+        qpos: State to start from (other bodies keep their values); default ``qpos0``.
 
     Raises:
-        SceneError: If the target stays more than 5 mm away (out of reach).
+        SceneError: If the target stays more than 5 mm (or 0.01 rad) away (out of reach).
     """
     data = mujoco.MjData(model)
+    if qpos is not None:
+        data.qpos[:] = qpos
     qadr = np.array([model.joint(n).qposadr[0] for n in BASE_JOINTS + ARM_JOINTS])
     dadr = np.array([model.joint(n).dofadr[0] for n in ARM_JOINTS])
     data.qpos[qadr[:3]] = base_pose
@@ -170,22 +177,39 @@ def start_qpos(
     lo = np.array([model.joint(n).range[0] for n in ARM_JOINTS])
     hi = np.array([model.joint(n).range[1] for n in ARM_JOINTS])
     site = model.site(EE_SITE).id
-    jac = np.zeros((3, model.nv))
+    jac = np.zeros((6, model.nv))
+
+    def error() -> np.ndarray:
+        err = ee_target - data.site_xpos[site]
+        if ee_rotation is None:
+            return err
+        return np.r_[err, rotation_error(ee_rotation, data.site_xmat[site].reshape(3, 3))]
+
     for _ in range(iterations):
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)  # the Jacobian needs cdof and subtree_com
-        err = ee_target - data.site_xpos[site]
-        if np.linalg.norm(err) < 1e-6:
+        err = error()
+        if np.linalg.norm(err) < 1e-7:
             break
-        mujoco.mj_jacSite(model, data, jac, None, site)
-        j = jac[:, dadr]
-        step = j.T @ np.linalg.solve(j @ j.T + damping * np.eye(3), err)
+        mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
+        j = jac[: len(err), dadr]
+        step = j.T @ np.linalg.solve(j @ j.T + damping * np.eye(len(err)), err)
         data.qpos[qadr[3:]] = np.clip(data.qpos[qadr[3:]] + step, lo, hi)
     mujoco.mj_kinematics(model, data)
-    miss = float(np.linalg.norm(ee_target - data.site_xpos[site]))
-    if miss > 5e-3:
+    miss = error()
+    if np.linalg.norm(miss[:3]) > 5e-3 or np.linalg.norm(miss[3:]) > 1e-2:
         raise SceneError(
-            f"start end-effector position {ee_target.tolist()} is {miss:.3f} m out of the arm's "
-            f"reach from base pose {base_pose.tolist()}; move arm_start or start"
+            f"start end-effector pose {ee_target.tolist()} is out of the arm's reach from base "
+            f"pose {base_pose.tolist()} (position miss {np.linalg.norm(miss[:3]):.3f} m, "
+            f"orientation miss {np.linalg.norm(miss[3:]):.3f} rad); move arm_start or start"
         )
     return data.qpos.copy()
+
+
+def rotation_error(r_desired: np.ndarray, r_actual: np.ndarray) -> np.ndarray:
+    """Axis-angle vector [rad] of R_d R_a^T (world frame): the rotation taking R_a to R_d."""
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, (r_desired @ r_actual.T).reshape(-1))
+    err = np.empty(3)
+    mujoco.mju_quat2Vel(err, q, 1.0)
+    return err

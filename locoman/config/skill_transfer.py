@@ -1,0 +1,250 @@
+"""Typed configuration of the mobile-manipulator branch (paper B): demos, KMP and HQP."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from omegaconf import MISSING
+
+
+def _vec(name: str, values: list[float] | None, n: int) -> list[tuple[str, str]]:
+    if values is not None and len(values) != n:
+        return [(name, f"needs {n} values, got {len(values)}")]
+    return []
+
+
+@dataclass
+class DemosCfg:
+    """Human demonstrations of the bottle pick-and-place (paper B, Sec. IV-A).
+
+    The synthetic source reproduces the paper's protocol: the subject starts from the same
+    pose, walks to the table, grasps the bottle on the move at ``grasp_time_s`` with
+    ``grasp_velocity`` and places it at the plan's target. The bottle and the target come
+    from the scenario; the pelvis and wrist waypoints below describe how the human moves.
+
+    Attributes:
+        source: ``synthetic`` (generated here) or ``csv`` (recorded files in ``csv_dir``).
+        csv_dir: Folder of recorded demonstrations (``*.csv``, layout in
+            :mod:`locoman.kmp.mocap_csv`), relative to the repository root.
+        scenario: The scenario holding the bottle, the table and the place target.
+        rate_hz: Sampling rate [Hz] (paper: 100).
+        duration_s: Length of every demonstration [s] (paper: 26).
+        n_recorded: Demonstrations recorded (paper: 10).
+        n_selected: Demonstrations kept for learning (paper: 5), those whose wrist passes
+            closest to the bottle at the grasp time.
+        pelvis_start: Pelvis (x [m], y [m], yaw [rad]) at t = 0.
+        wrist_start: Wrist position [m] at t = 0.
+        walk_end_time_s: End of the walking phase [s] (paper: 15).
+        walk_end_pelvis: Pelvis pose at the end of the walk (paper: x = 2.411 m).
+        walk_end_wrist: Wrist position at the end of the walk [m] (paper: z = 0.956 m).
+        walk_end_wrist_velocity: Wrist velocity at the end of the walk [m/s] (paper: 0.254).
+        grasp_time_s: Grasp instant [s] (paper: 18.15).
+        grasp_velocity: Wrist velocity at the grasp [m/s] (paper: [0.056, 0.164, 0.072]).
+        grasp_height: Wrist (gripper centre) above the bottle's base at grasp and place [m].
+        pelvis_at_grasp: Pelvis pose at the grasp.
+        place_time_s: The bottle reaches the target [s]; the human then stands still.
+        pelvis_at_place: Pelvis pose at the place instant.
+        timing_jitter_s: Std of the per-demo shift of every phase boundary [s].
+        path_jitter_m: Std of free waypoint offsets [m].
+        contact_jitter_m: Std of the wrist's miss of the bottle and of the target [m].
+        yaw_jitter_rad: Std of pelvis yaw offsets [rad].
+    """
+
+    source: str = "synthetic"
+    csv_dir: str | None = None
+    scenario: str = "mm_pick_place"
+    rate_hz: float = 100.0
+    duration_s: float = 26.0
+    n_recorded: int = 10
+    n_selected: int = 5
+    pelvis_start: list[float] = MISSING
+    wrist_start: list[float] = MISSING
+    walk_end_time_s: float = 15.0
+    walk_end_pelvis: list[float] = MISSING
+    walk_end_wrist: list[float] = MISSING
+    walk_end_wrist_velocity: list[float] = MISSING
+    grasp_time_s: float = 18.15
+    grasp_velocity: list[float] = MISSING
+    grasp_height: float = 0.1
+    pelvis_at_grasp: list[float] = MISSING
+    place_time_s: float = 23.5
+    pelvis_at_place: list[float] = MISSING
+    timing_jitter_s: float = 0.2
+    path_jitter_m: float = 0.03
+    contact_jitter_m: float = 0.004
+    yaw_jitter_rad: float = 0.04
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.source not in ("synthetic", "csv"):
+            errors.append(("source", f"must be synthetic or csv, got {self.source!r}"))
+        if self.source == "csv" and not self.csv_dir:
+            errors.append(("csv_dir", "source csv needs the folder of recorded files"))
+        if not 10.0 <= self.rate_hz <= 1000.0:
+            errors.append(("rate_hz", f"must be in [10, 1000] Hz, got {self.rate_hz}"))
+        if not 0 < self.n_selected <= self.n_recorded:
+            errors.append(("n_selected", "must be in [1, n_recorded]"))
+        if not 0.0 < self.walk_end_time_s < self.grasp_time_s < self.place_time_s:
+            errors.append(("grasp_time_s", "need 0 < walk_end_time_s < grasp_time_s < place"))
+        if self.place_time_s >= self.duration_s:
+            errors.append(("place_time_s", "must be before duration_s"))
+        for name, n in (
+            ("pelvis_start", 3),
+            ("wrist_start", 3),
+            ("walk_end_pelvis", 3),
+            ("walk_end_wrist", 3),
+            ("walk_end_wrist_velocity", 3),
+            ("grasp_velocity", 3),
+            ("pelvis_at_grasp", 3),
+            ("pelvis_at_place", 3),
+        ):
+            errors += _vec(name, getattr(self, name), n)
+        if min(self.timing_jitter_s, self.path_jitter_m, self.contact_jitter_m) < 0.0:
+            errors.append(("timing_jitter_s", "jitters must be >= 0"))
+        return errors
+
+
+@dataclass
+class ViaPointCfg:
+    """A desired point inserted into the KMP reference (KMP paper, Sec. IV).
+
+    A value left ``null`` is not constrained: that output keeps the reference's mean.
+
+    Attributes:
+        time_s: When [s].
+        wrist_pos: Wrist position [m], or ``null``.
+        wrist_vel: Wrist velocity [m/s], or ``null``.
+        pelvis: Pelvis (x [m], y [m], yaw [rad]), or ``null``.
+        at: ``grasp`` or ``place``: the wrist position is the plan's grasp point (the
+            object's position) or place point (the plan's target) raised by
+            ``demos.grasp_height``; overrides ``wrist_pos``.
+    """
+
+    time_s: float = MISSING
+    wrist_pos: list[float] | None = None
+    wrist_vel: list[float] | None = None
+    pelvis: list[float] | None = None
+    at: str | None = None
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = _vec("wrist_pos", self.wrist_pos, 3) + _vec("wrist_vel", self.wrist_vel, 3)
+        errors += _vec("pelvis", self.pelvis, 3)
+        if self.at not in (None, "grasp", "place"):
+            errors.append(("at", f"must be grasp, place or null, got {self.at!r}"))
+        if self.time_s < 0.0:
+            errors.append(("time_s", "must be >= 0 s"))
+        return errors
+
+
+@dataclass
+class KmpCfg:
+    """GMM/GMR reference and KMP (paper B, eq. (1)-(3)).
+
+    Attributes:
+        gmm_components: Gaussians of the GMM over (time, outputs).
+        n_reference: Reference points {s_n, mu_n, Sigma_n} extracted by GMR over the task.
+        regularization: KMP's lambda (paper: 10).
+        kernel_width_s: Width ``l`` of the RBF kernel k(s, s') = exp(-(s - s')^2 / (2 l^2)) [s].
+        via_point_variance: Variance of every constrained output of a via point (units^2);
+            1e-8 or smaller makes the prediction pass through the point.
+        rate_hz: Rate of the predicted reference the controller tracks [Hz] (paper: 1 kHz).
+        pelvis_to_base_m: Sigma_R sits this far ahead of Sigma_B (paper: 0.3875 m); the
+            learned pelvis maps to Sigma_R, the base command is in Sigma_B.
+        cases: Named adaptations: each a list of via points (``replica`` has the grasp and
+            place points only; ``generalisation`` adds the paper's new initial state).
+    """
+
+    gmm_components: int = 16
+    n_reference: int = 260
+    regularization: float = 10.0
+    kernel_width_s: float = 0.3
+    via_point_variance: float = 1e-9
+    rate_hz: float = 1000.0
+    pelvis_to_base_m: float = 0.3875
+    cases: dict[str, list[ViaPointCfg]] = field(default_factory=dict)
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.gmm_components < 1 or self.n_reference < 10:
+            errors.append(("n_reference", "need gmm_components >= 1 and n_reference >= 10"))
+        if self.regularization <= 0.0:
+            errors.append(("regularization", f"must be > 0, got {self.regularization}"))
+        if self.kernel_width_s <= 0.0:
+            errors.append(("kernel_width_s", f"must be > 0 s, got {self.kernel_width_s}"))
+        if not 0.0 < self.via_point_variance < 1e-2:
+            errors.append(("via_point_variance", "must be in (0, 1e-2)"))
+        if not self.cases:
+            errors.append(("cases", "define at least one case"))
+        return errors
+
+
+@dataclass
+class HqpCfg:
+    """Hierarchical QP and low-level control of the mobile manipulator (Sec. III-B, III-C).
+
+    Attributes:
+        dt: Control period and simulation step [s] (paper: 0.001).
+        kp: CLIK position/orientation gain, the diagonal of K_p in eq. (4) (paper: 4).
+        kv: CLIK velocity gain, the diagonal of K_v in eq. (4) (paper: 1).
+        measured_velocity_feedback: Use eq. (4) literally, K_v (xd_dot - xa_dot) with the
+            measured xa_dot; ``false`` (default) uses the feed-forward K_v xd_dot instead,
+            because feeding the measured velocity back in a velocity-resolved law lags
+            and chatters (see :mod:`locoman.hqp.tasks`).
+        level2_gain: Level 2 drives q* to its targets at this rate [1/s]: eq. (6) divided by
+            dt reads H qdot = (q_d - q*) / dt, and ``null`` keeps that 1 / dt. A dead-beat
+            gain under the acceleration limits (9) overshoots and chatters, so the default
+            spreads the correction over 0.5 s.
+        arm_mid_range_weight: Weight of eq. (6)'s arm mid-range term against the base term
+            (paper: 1). Both terms pull on the four degrees of freedom level 1 leaves free;
+            at 1, the arm's pull moves the base up to 0.75 m off the learned pose, into the
+            table, so the default lets the base term lead.
+        joint_stiffness: K_{q_a,p} of the joint impedance law (10) [N m/rad] (paper: 20).
+        joint_damping: K_{q_a,d} of (10) [N m s/rad] (paper: 8).
+        base_velocity_max: Base velocity limits (x [m/s], y [m/s], yaw [rad/s]).
+        base_acceleration_max: Base acceleration limits ([m/s^2], [m/s^2], [rad/s^2]).
+        arm_velocity_max: Panda joint velocity limits [rad/s] (Franka datasheet).
+        arm_acceleration_max: Panda joint acceleration limits [rad/s^2] (Franka datasheet).
+        position_margin: Margin kept inside the Panda's position limits [rad].
+        success_tolerance_m: The task succeeds if the bottle ends this close to the target.
+    """
+
+    dt: float = 0.001
+    kp: float = 4.0
+    kv: float = 1.0
+    measured_velocity_feedback: bool = False
+    level2_gain: float | None = 2.0
+    arm_mid_range_weight: float = 0.05
+    joint_stiffness: float = 20.0
+    joint_damping: float = 8.0
+    base_velocity_max: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])
+    base_acceleration_max: list[float] = field(default_factory=lambda: [2.0, 2.0, 2.0])
+    arm_velocity_max: list[float] = MISSING
+    arm_acceleration_max: list[float] = MISSING
+    position_margin: float = 0.05
+    success_tolerance_m: float = 0.03
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if not 1e-4 <= self.dt <= 1e-2:
+            errors.append(("dt", f"must be in [1e-4, 1e-2] s, got {self.dt}"))
+        if self.kp <= 0.0 or self.kv < 0.0:
+            errors.append(("kp", "need kp > 0 and kv >= 0"))
+        if self.level2_gain is not None and self.level2_gain <= 0.0:
+            errors.append(("level2_gain", f"must be > 0 [1/s] or null, got {self.level2_gain}"))
+        if self.arm_mid_range_weight <= 0.0:
+            errors.append(("arm_mid_range_weight", "must be > 0"))
+        if self.joint_stiffness <= 0.0 or self.joint_damping < 0.0:
+            errors.append(("joint_stiffness", "need stiffness > 0 and damping >= 0"))
+        errors += _vec("base_velocity_max", self.base_velocity_max, 3)
+        errors += _vec("base_acceleration_max", self.base_acceleration_max, 3)
+        errors += _vec("arm_velocity_max", self.arm_velocity_max, 7)
+        errors += _vec("arm_acceleration_max", self.arm_acceleration_max, 7)
+        limits = (
+            self.base_velocity_max
+            + self.base_acceleration_max
+            + self.arm_velocity_max
+            + self.arm_acceleration_max
+        )
+        if any(v <= 0.0 for v in limits):
+            errors.append(("base_velocity_max", "velocity and acceleration limits must be > 0"))
+        return errors

@@ -1,0 +1,151 @@
+"""The hierarchical QP (paper B, Sec. III-B) solved with DAQP's native hierarchy.
+
+DAQP solves a lexicographic least-squares problem in one call: the simple bounds form the
+first level, then each task level in order. A level's optimal residual is imposed on every
+level below it (strict hierarchy, Kanoun et al. 2011), so level 2 can only use the freedom
+level 1 leaves, and the minimum-norm velocity breaks the remaining ties.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import daqp
+import numpy as np
+
+from locoman.errors import SolverError
+from locoman.hqp.limits import JointLimits, velocity_box
+from locoman.hqp.tasks import arm_mid_range_task, base_pose_task, clik_task
+
+Task = tuple[np.ndarray, np.ndarray]
+
+
+def solve_hierarchy(
+    levels: Sequence[Task],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    last: tuple[Task, np.ndarray] | None = None,
+) -> np.ndarray:
+    """Lexicographic least squares: bounds, then ``levels[0]``, ``levels[1]``, ..., ``last``.
+
+    DAQP measures the residual of each row of a constraint level in its own norm (rows are
+    normalised), so a level cannot weight its rows. The last level may therefore be given as
+    a weighted task, which becomes DAQP's objective, minimised over the optimal set of all
+    the levels above: min ||W^{1/2} (A x - b)||^2. Without it the objective is min ||x||^2.
+
+    Args:
+        levels: Tasks (A_k (m_k, n), b_k (m_k,)), most important first.
+        lower: (n,) lower bounds on x.
+        upper: (n,) upper bounds on x.
+        last: Optional lowest level ((A (m, n), b (m,)), row weights (m,)), A of full column
+            rank so that the objective is strictly convex.
+
+    Returns:
+        x (n,), inside the bounds.
+
+    Raises:
+        SolverError: If DAQP fails (bounds with lower > upper, a numerical breakdown).
+    """
+    n = len(lower)
+    if last is None:
+        h, f = np.eye(n), np.zeros(n)
+    else:
+        (a_last, b_last), w = last
+        h = a_last.T @ (w[:, None] * a_last)
+        f = -a_last.T @ (w * b_last)
+    a = np.ascontiguousarray(np.vstack([t[0] for t in levels]), dtype=float)
+    b = np.concatenate([t[1] for t in levels])
+    breaks = np.cumsum([n] + [len(t[1]) for t in levels]).astype(np.int32)
+    x, _, flag, _ = daqp.solve(
+        h,
+        f,
+        a,
+        np.r_[upper, b],
+        np.r_[lower, b],
+        np.zeros(n + len(b), dtype=np.int32),
+        breaks,
+    )
+    if flag < 0:
+        raise SolverError(f"DAQP failed on the hierarchical QP (exit flag {flag})")
+    return np.clip(x, lower, upper)
+
+
+class WholeBodyHqp:
+    """The two-level stack of the mobile manipulator, with its integrated optimal state.
+
+    Level 1: CLIK of the end-effector pose and velocity, eq. (4). Level 2: the learned base
+    pose plus the arm's mid-range posture, eq. (6), as a weighted least-squares objective
+    over level 1's optimal set. Both under the limits (7)-(9).
+
+    Attributes:
+        q_star: (10,) integrated optimal configuration q* (base x, y, yaw, arm 1..7).
+        qdot_star: (10,) optimal velocity of the last step qdot*.
+    """
+
+    def __init__(
+        self,
+        limits: JointLimits,
+        dt: float,
+        q0: np.ndarray,
+        kp: float,
+        kv: float,
+        level2_gain: float,
+        arm_mid_range_weight: float,
+        measured_velocity_feedback: bool = False,
+    ) -> None:
+        self.limits = limits
+        self.dt = dt
+        self.kp = kp
+        self.kv = kv
+        self.level2_gain = level2_gain
+        self.measured_velocity_feedback = measured_velocity_feedback
+        self.weights = np.r_[np.ones(3), np.full(7, arm_mid_range_weight)]
+        self.q_star = np.asarray(q0, dtype=float).copy()
+        self.qdot_star = np.zeros(10)
+        self.last_level1: Task | None = None
+
+    def levels(
+        self,
+        jacobian: np.ndarray,
+        x_desired: tuple[np.ndarray, np.ndarray],
+        xdot_desired: np.ndarray,
+        x_actual: tuple[np.ndarray, np.ndarray],
+        q_base_desired: np.ndarray,
+        xdot_actual: np.ndarray | None = None,
+    ) -> tuple[Task, Task]:
+        """Level 1 (eq. (4)) and level 2 (eq. (6)) for the current state."""
+        level1 = clik_task(
+            jacobian,
+            x_desired,
+            xdot_desired,
+            x_actual,
+            self.kp,
+            self.kv,
+            xdot_actual if self.measured_velocity_feedback else None,
+        )
+        base = base_pose_task(q_base_desired, self.q_star[:3], self.level2_gain)
+        arm = arm_mid_range_task(self.limits.arm_mid, self.q_star[3:], self.level2_gain)
+        return level1, (np.vstack([base[0], arm[0]]), np.r_[base[1], arm[1]])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity box of the next step, eq. (7)-(9)."""
+        return velocity_box(self.limits, self.q_star[3:], self.qdot_star, self.dt)
+
+    def step(
+        self,
+        jacobian: np.ndarray,
+        x_desired: tuple[np.ndarray, np.ndarray],
+        xdot_desired: np.ndarray,
+        x_actual: tuple[np.ndarray, np.ndarray],
+        q_base_desired: np.ndarray,
+        xdot_actual: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Solve the stack, integrate q* and return qdot* (10,)."""
+        level1, level2 = self.levels(
+            jacobian, x_desired, xdot_desired, x_actual, q_base_desired, xdot_actual
+        )
+        qdot = solve_hierarchy([level1], *self.bounds(), last=(level2, self.weights))
+        self.last_level1 = level1
+        self.qdot_star = qdot
+        self.q_star = self.q_star + qdot * self.dt
+        return qdot

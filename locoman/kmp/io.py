@@ -1,0 +1,43 @@
+"""Artifacts of the demos and kmp_fit stages."""
+
+from __future__ import annotations
+
+from locoman.artifacts import ArtifactSchema, Field
+
+DEMOS = ArtifactSchema(
+    "demos.demos",
+    1,
+    "demos",
+    (
+        Field("time_s", "float64", ("N",), "s", "sample times"),
+        Field("wrist_pos", "float64", ("M", "N", 3), "m", "wrist position, world"),
+        Field("wrist_vel", "float64", ("M", "N", 3), "m/s", "wrist velocity, world"),
+        Field("pelvis", "float64", ("M", "N", 3), "mixed", "pelvis x [m], y [m], yaw [rad]"),
+        Field("selected", "int64", ("S",), "-", "indices of the demos kept for learning"),
+        Field("grasp_miss_m", "float64", ("M",), "m", "wrist-to-grasp-point distance"),
+    ),
+)
+GMR = ArtifactSchema(
+    "kmp.gmr",
+    1,
+    "kmp_fit",
+    (
+        Field("s", "float64", ("N",), "s", "reference inputs s_n"),
+        Field("mean", "float64", ("N", 9), "mixed", "mu_n: wrist pos [m], vel [m/s], pelvis"),
+        Field("cov", "float64", ("N", 9, 9), "mixed", "Sigma_n"),
+    ),
+)
+REFERENCE = ArtifactSchema(
+    "kmp.reference",
+    1,
+    "kmp_fit",
+    (
+        Field("time_s", "float64", ("T",), "s", "prediction times (kmp.rate_hz)"),
+        Field("wrist_pos", "float64", ("T", 3), "m", "x_d: desired end-effector position"),
+        Field("wrist_vel", "float64", ("T", 3), "m/s", "xd_dot: desired end-effector velocity"),
+        Field("pelvis", "float64", ("T", 3), "mixed", "learned pelvis x [m], y [m], yaw [rad]"),
+        Field("base", "float64", ("T", 3), "mixed", "q_b,d: base frame Sigma_B x, y, yaw"),
+        Field("via_time_s", "float64", ("V",), "s", "via point inputs"),
+        Field("via_mean", "float64", ("V", 9), "mixed", "via point outputs; NaN = free"),
+    ),
+)
