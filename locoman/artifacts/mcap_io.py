@@ -67,6 +67,31 @@ def write_frame_transforms(
         topic: MCAP topic.
         parent: Parent frame of every transform.
     """
+    write_mcap(path, times, frames, {}, tf_topic=topic, parent=parent)
+
+
+def write_mcap(
+    path: str | Path,
+    times: np.ndarray,
+    frames: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    signals: Mapping[str, Mapping[str, np.ndarray]],
+    tf_topic: str = "/tf",
+    parent: str = "world",
+) -> None:
+    """Write frames as ``foxglove.FrameTransforms`` and named signals as JSON topics.
+
+    Every signal topic carries one message per time step, an object mapping each signal name
+    to its value(s) at that step (a number or a list of numbers), so Foxglove's Plot panel can
+    draw e.g. ``/ee.desired[0]`` against ``/ee.actual[0]``.
+
+    Args:
+        path: Output ``.mcap`` file (written atomically).
+        times: (T,) time of each step [s], non-decreasing.
+        frames: Frame name -> (positions (T, 3) [m], quaternions (T, 4) (w, x, y, z)).
+        signals: Topic -> signal name -> (T,) or (T, k) values.
+        tf_topic: Topic of the frame transforms.
+        parent: Parent frame of every transform.
+    """
     times = np.asarray(times, dtype=float)
     for name, (pos, quat) in frames.items():
         if pos.shape != (len(times), 3) or quat.shape != (len(times), 4):
@@ -74,39 +99,79 @@ def write_frame_transforms(
                 f"frame {name!r}: need positions (T, 3) and quaternions (T, 4) for T = "
                 f"{len(times)}, got {pos.shape} and {quat.shape}"
             )
+    for topic, named in signals.items():
+        for name, values in named.items():
+            if len(values) != len(times):
+                raise ValueError(f"signal {topic}.{name} has {len(values)} rows, T = {len(times)}")
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         writer = Writer(fh)
         writer.start(profile="", library="locoman")
-        schema_id = writer.register_schema(
-            name="foxglove.FrameTransforms",
-            encoding="jsonschema",
-            data=json.dumps(FRAME_TRANSFORMS_SCHEMA).encode(),
-        )
-        channel = writer.register_channel(topic=topic, message_encoding="json", schema_id=schema_id)
+        channels: dict[str, int] = {}
+        if frames:
+            schema_id = writer.register_schema(
+                name="foxglove.FrameTransforms",
+                encoding="jsonschema",
+                data=json.dumps(FRAME_TRANSFORMS_SCHEMA).encode(),
+            )
+            channels[tf_topic] = writer.register_channel(
+                topic=tf_topic, message_encoding="json", schema_id=schema_id
+            )
+        for topic, named in signals.items():
+            schema = {
+                "title": f"locoman{topic.replace('/', '.')}",
+                "type": "object",
+                "properties": {
+                    n: {"type": "array", "items": {"type": "number"}}
+                    if np.ndim(v) == 2
+                    else {"type": "number"}
+                    for n, v in named.items()
+                },
+            }
+            schema_id = writer.register_schema(
+                name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
+            )
+            channels[topic] = writer.register_channel(
+                topic=topic, message_encoding="json", schema_id=schema_id
+            )
         for k, t in enumerate(times):
             stamp = _stamp(float(t))
-            transforms = []
-            for name, (pos, quat) in frames.items():
-                w, x, y, z = (float(v) for v in quat[k])
-                px, py, pz = (float(v) for v in pos[k])
-                transforms.append(
-                    {
-                        "timestamp": stamp,
-                        "parent_frame_id": parent,
-                        "child_frame_id": name,
-                        "translation": {"x": px, "y": py, "z": pz},
-                        "rotation": {"x": x, "y": y, "z": z, "w": w},
-                    }
-                )
             ns = stamp["sec"] * 1_000_000_000 + stamp["nsec"]
-            writer.add_message(
-                channel_id=channel,
-                log_time=ns,
-                publish_time=ns,
-                sequence=k,
-                data=json.dumps({"transforms": transforms}, sort_keys=True).encode(),
-            )
+            messages: dict[str, Any] = {}
+            if frames:
+                messages[tf_topic] = {"transforms": _transforms(frames, k, stamp, parent)}
+            for topic, named in signals.items():
+                messages[topic] = {n: np.asarray(v[k]).tolist() for n, v in named.items()}
+            for topic, message in messages.items():
+                writer.add_message(
+                    channel_id=channels[topic],
+                    log_time=ns,
+                    publish_time=ns,
+                    sequence=k,
+                    data=json.dumps(message, sort_keys=True).encode(),
+                )
         writer.finish()
+
+
+def _transforms(
+    frames: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    k: int,
+    stamp: dict[str, int],
+    parent: str,
+) -> list[dict[str, Any]]:
+    transforms = []
+    for name, (pos, quat) in frames.items():
+        w, x, y, z = (float(v) for v in quat[k])
+        px, py, pz = (float(v) for v in pos[k])
+        transforms.append(
+            {
+                "timestamp": stamp,
+                "parent_frame_id": parent,
+                "child_frame_id": name,
+                "translation": {"x": px, "y": py, "z": pz},
+                "rotation": {"x": x, "y": y, "z": z, "w": w},
+            }
+        )
+    return transforms
 
 
 def read_json_messages(path: str | Path, topic: str) -> list[tuple[str, int, dict[str, Any]]]:

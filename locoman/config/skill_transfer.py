@@ -137,11 +137,19 @@ class ViaPointCfg:
 
 
 @dataclass
+class KmpCaseCfg:
+    """An adaptation case of the KMP: the via points inserted into the reference."""
+
+    via_points: list[ViaPointCfg] = field(default_factory=list)
+
+
+@dataclass
 class KmpCfg:
     """GMM/GMR reference and KMP (paper B, eq. (1)-(3)).
 
     Attributes:
         gmm_components: Gaussians of the GMM over (time, outputs).
+        gmm_tolerance: EM stops when the mean log-likelihood gains less than this.
         n_reference: Reference points {s_n, mu_n, Sigma_n} extracted by GMR over the task.
         regularization: KMP's lambda (paper: 10).
         kernel_width_s: Width ``l`` of the RBF kernel k(s, s') = exp(-(s - s')^2 / (2 l^2)) [s].
@@ -150,18 +158,19 @@ class KmpCfg:
         rate_hz: Rate of the predicted reference the controller tracks [Hz] (paper: 1 kHz).
         pelvis_to_base_m: Sigma_R sits this far ahead of Sigma_B (paper: 0.3875 m); the
             learned pelvis maps to Sigma_R, the base command is in Sigma_B.
-        cases: Named adaptations: each a list of via points (``replica`` has the grasp and
+        cases: Named adaptations, each with its via points (``replica`` has the grasp and
             place points only; ``generalisation`` adds the paper's new initial state).
     """
 
     gmm_components: int = 16
+    gmm_tolerance: float = 1e-2
     n_reference: int = 260
     regularization: float = 10.0
-    kernel_width_s: float = 0.3
-    via_point_variance: float = 1e-9
+    kernel_width_s: float = 1.0
+    via_point_variance: float = 1e-10
     rate_hz: float = 1000.0
     pelvis_to_base_m: float = 0.3875
-    cases: dict[str, list[ViaPointCfg]] = field(default_factory=dict)
+    cases: dict[str, KmpCaseCfg] = field(default_factory=dict)
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -193,7 +202,7 @@ class HqpCfg:
         level2_gain: Level 2 drives q* to its targets at this rate [1/s]: eq. (6) divided by
             dt reads H qdot = (q_d - q*) / dt, and ``null`` keeps that 1 / dt. A dead-beat
             gain under the acceleration limits (9) overshoots and chatters, so the default
-            spreads the correction over 0.5 s.
+            spreads the correction over 1 s.
         arm_mid_range_weight: Weight of eq. (6)'s arm mid-range term against the base term
             (paper: 1). Both terms pull on the four degrees of freedom level 1 leaves free;
             at 1, the arm's pull moves the base up to 0.75 m off the learned pose, into the
@@ -212,12 +221,12 @@ class HqpCfg:
     kp: float = 4.0
     kv: float = 1.0
     measured_velocity_feedback: bool = False
-    level2_gain: float | None = 2.0
+    level2_gain: float | None = 1.0
     arm_mid_range_weight: float = 0.05
     joint_stiffness: float = 20.0
     joint_damping: float = 8.0
-    base_velocity_max: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])
-    base_acceleration_max: list[float] = field(default_factory=lambda: [2.0, 2.0, 2.0])
+    base_velocity_max: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.5])
+    base_acceleration_max: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.3])
     arm_velocity_max: list[float] = MISSING
     arm_acceleration_max: list[float] = MISSING
     position_margin: float = 0.05

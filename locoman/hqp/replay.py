@@ -82,6 +82,7 @@ class ReplayLog:
     obj_quat_wxyz: np.ndarray
     level1_residual: np.ndarray
     hqp_step_s: np.ndarray
+    qpos: np.ndarray
     wall_s: float
 
 
@@ -139,6 +140,7 @@ def replay(
     }
     log |= {"q_star": np.zeros((n, 10)), "qdot_star": np.zeros((n, 10)), "q": np.zeros((n, 10))}
     log |= {"torque": np.zeros((n, 7)), "obj_quat_wxyz": np.zeros((n, 4))}
+    log |= {"qpos": np.zeros((n, model.nq))}
     log |= {name: np.zeros(n) for name in ("gripper", "level1_residual", "hqp_step_s")}
     jac = np.zeros((6, model.nv))
     xdot_d = np.zeros(6)
@@ -184,6 +186,7 @@ def replay(
         log["gripper"][k] = float(closed)
         log["obj_pos"][k] = data.xpos[obj_body]
         log["obj_quat_wxyz"][k] = data.xquat[obj_body]
+        log["qpos"][k] = data.qpos
         level1 = hqp.last_level1
         log["level1_residual"][k] = float(np.linalg.norm(level1[0] @ qdot - level1[1]))
     wall = time.perf_counter() - start

@@ -20,25 +20,30 @@ from locoman.hqp.tasks import arm_mid_range_task, base_pose_task, clik_task
 Task = tuple[np.ndarray, np.ndarray]
 
 
+def weighted_objective(task: Task, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(H, f) of min 1/2 ||W^{1/2} (A x - b)||^2 = 1/2 x^T H x + f^T x + const."""
+    a, b = task
+    return a.T @ (weights[:, None] * a), -a.T @ (weights * b)
+
+
 def solve_hierarchy(
     levels: Sequence[Task],
     lower: np.ndarray,
     upper: np.ndarray,
-    last: tuple[Task, np.ndarray] | None = None,
+    objective: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Lexicographic least squares: bounds, then ``levels[0]``, ``levels[1]``, ..., ``last``.
+    """Lexicographic least squares: bounds, then ``levels[0]``, ``levels[1]``, ..., objective.
 
-    DAQP measures the residual of each row of a constraint level in its own norm (rows are
-    normalised), so a level cannot weight its rows. The last level may therefore be given as
-    a weighted task, which becomes DAQP's objective, minimised over the optimal set of all
-    the levels above: min ||W^{1/2} (A x - b)||^2. Without it the objective is min ||x||^2.
+    DAQP measures the residual of each row of a constraint level in that row's own norm (rows
+    are normalised), so a level cannot weight its rows. A weighted lowest level is therefore
+    passed as DAQP's objective (see :func:`weighted_objective`), which DAQP minimises over the
+    optimal set of all the levels above. Without it the objective is min 1/2 ||x||^2.
 
     Args:
         levels: Tasks (A_k (m_k, n), b_k (m_k,)), most important first.
         lower: (n,) lower bounds on x.
         upper: (n,) upper bounds on x.
-        last: Optional lowest level ((A (m, n), b (m,)), row weights (m,)), A of full column
-            rank so that the objective is strictly convex.
+        objective: Optional (H (n, n) positive definite, f (n,)).
 
     Returns:
         x (n,), inside the bounds.
@@ -47,23 +52,20 @@ def solve_hierarchy(
         SolverError: If DAQP fails (bounds with lower > upper, a numerical breakdown).
     """
     n = len(lower)
-    if last is None:
-        h, f = np.eye(n), np.zeros(n)
-    else:
-        (a_last, b_last), w = last
-        h = a_last.T @ (w[:, None] * a_last)
-        f = -a_last.T @ (w * b_last)
-    a = np.ascontiguousarray(np.vstack([t[0] for t in levels]), dtype=float)
+    h, f = (np.eye(n), np.zeros(n)) if objective is None else objective
+    a = levels[0][0] if len(levels) == 1 else np.vstack([t[0] for t in levels])
     b = np.concatenate([t[1] for t in levels])
-    breaks = np.cumsum([n] + [len(t[1]) for t in levels]).astype(np.int32)
+    breaks = [n]
+    for t in levels:
+        breaks.append(breaks[-1] + len(t[1]))
     x, _, flag, _ = daqp.solve(
         h,
         f,
-        a,
-        np.r_[upper, b],
-        np.r_[lower, b],
+        np.ascontiguousarray(a, dtype=float),
+        np.concatenate([upper, b]),
+        np.concatenate([lower, b]),
         np.zeros(n + len(b), dtype=np.int32),
-        breaks,
+        np.array(breaks, dtype=np.int32),
     )
     if flag < 0:
         raise SolverError(f"DAQP failed on the hierarchical QP (exit flag {flag})")
@@ -100,6 +102,8 @@ class WholeBodyHqp:
         self.level2_gain = level2_gain
         self.measured_velocity_feedback = measured_velocity_feedback
         self.weights = np.r_[np.ones(3), np.full(7, arm_mid_range_weight)]
+        # Level 2's A stacks H_b and H_a: the identity, so its objective Hessian is W.
+        self._hessian = np.diag(self.weights)
         self.q_star = np.asarray(q0, dtype=float).copy()
         self.qdot_star = np.zeros(10)
         self.last_level1: Task | None = None
@@ -125,7 +129,7 @@ class WholeBodyHqp:
         )
         base = base_pose_task(q_base_desired, self.q_star[:3], self.level2_gain)
         arm = arm_mid_range_task(self.limits.arm_mid, self.q_star[3:], self.level2_gain)
-        return level1, (np.vstack([base[0], arm[0]]), np.r_[base[1], arm[1]])
+        return level1, (np.vstack([base[0], arm[0]]), np.concatenate([base[1], arm[1]]))
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The velocity box of the next step, eq. (7)-(9)."""
@@ -141,10 +145,11 @@ class WholeBodyHqp:
         xdot_actual: np.ndarray | None = None,
     ) -> np.ndarray:
         """Solve the stack, integrate q* and return qdot* (10,)."""
-        level1, level2 = self.levels(
+        level1, (_, target) = self.levels(
             jacobian, x_desired, xdot_desired, x_actual, q_base_desired, xdot_actual
         )
-        qdot = solve_hierarchy([level1], *self.bounds(), last=(level2, self.weights))
+        objective = (self._hessian, -self.weights * target)
+        qdot = solve_hierarchy([level1], *self.bounds(), objective=objective)
         self.last_level1 = level1
         self.qdot_star = qdot
         self.q_star = self.q_star + qdot * self.dt

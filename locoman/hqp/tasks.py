@@ -44,9 +44,13 @@ def clik_task(
         (A, b) with A = J and b the commanded end-effector velocity.
     """
     (p_d, r_d), (p_a, r_a) = x_desired, x_actual
-    error = np.r_[p_d - p_a, rotation_error(r_d, r_a)]
+    error = np.concatenate([p_d - p_a, rotation_error(r_d, r_a)])
     velocity = xdot_desired if xdot_actual is None else xdot_desired - xdot_actual
     return jacobian, kv * velocity + kp * error
+
+
+_H_B = np.eye(3, 10)
+_H_A = np.eye(7, 10, 3)
 
 
 def base_pose_task(
@@ -57,17 +61,13 @@ def base_pose_task(
     H_b selects the base (3 of 10 joints). With g = 1 / dt this is the paper's term exactly;
     a smaller g spreads the correction over 1 / g seconds.
     """
-    a = np.zeros((3, 10))
-    a[:, :3] = np.eye(3)
     err = q_base_desired - q_base_star
-    err[2] = np.arctan2(np.sin(err[2]), np.cos(err[2]))
-    return a, gain * err
+    err[2] = (err[2] + np.pi) % (2.0 * np.pi) - np.pi
+    return _H_B, gain * err
 
 
 def arm_mid_range_task(
     q_arm_mid: np.ndarray, q_arm_star: np.ndarray, gain: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Second term of eq. (6) divided by dt: H_a qdot = g (q_a,mid - q_a*), H_a the arm (7)."""
-    a = np.zeros((7, 10))
-    a[:, 3:] = np.eye(7)
-    return a, gain * (q_arm_mid - q_arm_star)
+    return _H_A, gain * (q_arm_mid - q_arm_star)

@@ -82,7 +82,12 @@ def _hermite(times: np.ndarray, points: np.ndarray, vels: list[np.ndarray | None
 def _one_demo(
     cfg: DemosCfg, task: TaskPoints, t: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    jt, jp, jc, jy = cfg.timing_jitter_s, cfg.path_jitter_m, cfg.contact_jitter_m, cfg.yaw_jitter_rad
+    jt, jp, jc, jy = (
+        cfg.timing_jitter_s,
+        cfg.path_jitter_m,
+        cfg.contact_jitter_m,
+        cfg.yaw_jitter_rad,
+    )
     t_walk = cfg.walk_end_time_s + rng.normal(0, jt)
     t_grasp = cfg.grasp_time_s + rng.normal(0, jt)
     t_place = cfg.place_time_s + rng.normal(0, jt)

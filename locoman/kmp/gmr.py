@@ -39,7 +39,7 @@ class Reference:
     cov: np.ndarray
 
 
-def fit_gmm(s: np.ndarray, xi: np.ndarray, n_components: int, seed: int) -> Gmm:
+def fit_gmm(s: np.ndarray, xi: np.ndarray, n_components: int, seed: int, tol: float = 1e-2) -> Gmm:
     """Fit a GMM to samples (s (S,), xi (S, O)), initialised with equal slices of time.
 
     Time-sliced initial means make the fit deterministic and put one Gaussian on every phase
@@ -57,6 +57,7 @@ def fit_gmm(s: np.ndarray, xi: np.ndarray, n_components: int, seed: int) -> Gmm:
         covariance_type="full",
         reg_covar=1e-6,
         max_iter=500,
+        tol=tol,
         means_init=means,
         random_state=seed,
     ).fit(data)

@@ -79,8 +79,7 @@ def read_demo_csv(path: str | Path) -> dict[str, np.ndarray]:
                 value = float("nan")
             if not np.isfinite(value):
                 raise DemoError(
-                    f"demo file {path}, row {line}, column {c!r}: {row[i]!r} is not a finite "
-                    "number"
+                    f"demo file {path}, row {line}, column {c!r}: {row[i]!r} is not a finite number"
                 )
             out[c][r] = value
     steps = np.diff(out["time_s"])

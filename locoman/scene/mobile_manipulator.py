@@ -209,7 +209,7 @@ def start_qpos(
 def rotation_error(r_desired: np.ndarray, r_actual: np.ndarray) -> np.ndarray:
     """Axis-angle vector [rad] of R_d R_a^T (world frame): the rotation taking R_a to R_d."""
     q = np.empty(4)
-    mujoco.mju_mat2Quat(q, (r_desired @ r_actual.T).reshape(-1))
+    mujoco.mju_mat2Quat(q, (r_desired @ r_actual.T).ravel())
     err = np.empty(3)
     mujoco.mju_quat2Vel(err, q, 1.0)
     return err

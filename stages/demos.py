@@ -1,0 +1,63 @@
+"""Stage `demos`: record (synthesise) or load the human demonstrations of paper B.
+
+Usage: python stages/demos.py   (reads params.yaml and data/<demos.scenario>/scene/,
+writes data/<demos.scenario>/demos/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from locoman.artifacts import write_json_atomic, write_npz
+from locoman.config import load_params
+from locoman.kmp.demos import select_demos, synthetic_demos, task_points
+from locoman.kmp.io import DEMOS
+from locoman.kmp.mocap_csv import load_demo_dir
+from locoman.scene.io import load_objects, load_plan
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main() -> None:
+    cfg = load_params()
+    d = cfg.demos
+    scene = DATA_DIR / d.scenario / "scene"
+    _, task = task_points(load_objects(scene), load_plan(scene), d.grasp_height)
+    if d.source == "synthetic":
+        demos, selected, miss = synthetic_demos(d, task, cfg.seed)
+    else:
+        demos = load_demo_dir(d.csv_dir, d.rate_hz, d.duration_s)
+        selected, miss = select_demos(demos, task, d.grasp_time_s, min(d.n_selected, len(miss)))
+    out = stage_dir(d.scenario, "demos")
+    write_npz(
+        out / "demos.npz",
+        DEMOS,
+        {
+            "time_s": demos.time_s,
+            "wrist_pos": demos.wrist_pos,
+            "wrist_vel": demos.wrist_vel,
+            "pelvis": demos.pelvis,
+            "selected": selected.astype(np.int64),
+            "grasp_miss_m": miss,
+        },
+    )
+    k = int(np.argmin(np.abs(demos.time_s - d.grasp_time_s)))
+    speed = np.linalg.norm(demos.wrist_vel[selected, k], axis=1)
+    write_json_atomic(
+        out / "metrics.json",
+        {
+            "n_recorded": len(miss),
+            "n_selected": len(selected),
+            "duration_s": float(demos.time_s[-1]),
+            "grasp_miss_selected_max_m": float(miss[selected].max()),
+            "grasp_miss_rejected_min_m": float(np.delete(miss, selected).min(initial=np.inf))
+            if len(selected) < len(miss)
+            else 0.0,
+            "grasp_speed_mean_mps": float(speed.mean()),
+        },
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])

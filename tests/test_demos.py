@@ -1,0 +1,84 @@
+"""Demonstrations: the synthetic protocol and the motion-capture CSV loader."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from locoman.config import load_params
+from locoman.errors import DemoError
+from locoman.kmp.demos import TaskPoints, synthetic_demos
+from locoman.kmp.mocap_csv import COLUMNS, load_demo_dir, read_demo_csv, write_demo_csv
+
+TASK = TaskPoints(np.array([3.687, 0.423, 0.823]), np.array([3.73, 0.97, 0.828]))
+
+
+@pytest.fixture(scope="module")
+def cfg(repo):
+    return load_params(repo / "params.yaml").demos
+
+
+def test_synthetic_demos_follow_the_protocol(cfg):
+    demos, selected, miss = synthetic_demos(cfg, TASK, seed=0)
+    assert demos.wrist_pos.shape == (10, 2601, 3) and len(selected) == 5
+    assert demos.time_s[-1] == pytest.approx(26.0)
+    np.testing.assert_allclose(demos.wrist_pos[:, 0].mean(0), cfg.wrist_start, atol=0.01)
+    np.testing.assert_allclose(demos.pelvis[:, 0].mean(0), cfg.pelvis_start, atol=0.05)
+    k = int(np.argmin(np.abs(demos.time_s - cfg.grasp_time_s)))
+    assert np.median(miss[selected]) < 0.03
+    assert np.all(miss[selected] <= np.delete(miss, selected).min())
+    speed = np.linalg.norm(demos.wrist_vel[selected, k], axis=1)
+    assert np.median(speed) == pytest.approx(0.188, abs=0.04)
+    fd = np.gradient(demos.wrist_pos, demos.time_s, axis=1)
+    assert np.abs(fd - demos.wrist_vel)[:, 5:-5].max() < 0.05
+    again = synthetic_demos(cfg, TASK, seed=0)[0]
+    np.testing.assert_array_equal(again.wrist_pos, demos.wrist_pos)
+
+
+def test_csv_round_trip(tmp_path, cfg):
+    demos, *_ = synthetic_demos(cfg, TASK, seed=1)
+    for m in range(2):
+        write_demo_csv(
+            tmp_path / f"demo_{m}.csv", demos.time_s, demos.wrist_pos[m], demos.pelvis[m]
+        )
+    loaded = load_demo_dir(tmp_path, 100.0, 26.0)
+    np.testing.assert_allclose(loaded.wrist_pos, demos.wrist_pos[:2], atol=1e-6)
+    np.testing.assert_allclose(loaded.pelvis, demos.pelvis[:2], atol=1e-6)
+    np.testing.assert_allclose(loaded.wrist_vel[:, 2:-2], demos.wrist_vel[:2, 2:-2], atol=2e-3)
+
+
+def _write(path, rows):
+    path.write_text("\n".join([",".join(COLUMNS), *rows]) + "\n")
+
+
+def test_malformed_value_names_row_and_column(tmp_path):
+    good = ",".join(["0.0"] * len(COLUMNS))
+    bad = ",".join(["0.01", "0.1", "abc"] + ["0.0"] * (len(COLUMNS) - 3))
+    _write(tmp_path / "d.csv", [good, bad])
+    with pytest.raises(DemoError, match=r"row 3, column 'wrist_y': 'abc'"):
+        read_demo_csv(tmp_path / "d.csv")
+
+
+@pytest.mark.parametrize(
+    ("rows", "message"),
+    [
+        (["0,1"], "header lacks|samples"),
+        ([",".join(["0.0"] * len(COLUMNS)), ",".join(["0.0"] * len(COLUMNS))], "time must"),
+        ([",".join(["0.0"] * len(COLUMNS)), "0.1,2"], r"row 3: 2 values"),
+    ],
+)
+def test_malformed_files_are_refused(tmp_path, rows, message):
+    _write(tmp_path / "d.csv", rows)
+    with pytest.raises(DemoError, match=message):
+        read_demo_csv(tmp_path / "d.csv")
+
+
+def test_missing_header_column_is_named(tmp_path):
+    (tmp_path / "d.csv").write_text("time_s,wrist_x\n0,0\n0.1,0\n")
+    with pytest.raises(DemoError, match="wrist_y"):
+        read_demo_csv(tmp_path / "d.csv")
+
+
+def test_empty_folder_is_refused(tmp_path):
+    with pytest.raises(DemoError, match="no demonstration files"):
+        load_demo_dir(tmp_path, 100.0, 26.0)

@@ -1,0 +1,116 @@
+"""HQP: bounds respected, strict hierarchy, tasks and the short closed loop in MuJoCo."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from locoman.hqp.impedance import joint_impedance_torque
+from locoman.hqp.limits import JointLimits, velocity_box
+from locoman.hqp.solver import WholeBodyHqp, solve_hierarchy, weighted_objective
+
+LIMITS = JointLimits(
+    arm_min=np.full(7, -2.5),
+    arm_max=np.full(7, 2.5),
+    velocity_max=np.r_[0.5, 0.5, 0.5, np.full(7, 2.0)],
+    acceleration_max=np.r_[0.5, 0.5, 0.3, np.full(7, 10.0)],
+)
+
+
+def random_problem(seed: int):
+    rng = np.random.default_rng(seed)
+    jac = rng.normal(size=(6, 10))
+    b1 = rng.normal(scale=0.3, size=6)
+    q_arm = rng.uniform(-2.6, 2.6, 7)
+    prev = np.clip(rng.normal(scale=0.5, size=10), -LIMITS.velocity_max, LIMITS.velocity_max)
+    lo, hi = velocity_box(LIMITS, q_arm, prev, 1e-3)
+    level2 = (np.eye(10), rng.normal(size=10))
+    return jac, b1, lo, hi, level2, q_arm, prev
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000))
+def test_velocity_box_is_never_empty_and_respects_7_to_9(seed):
+    _, _, lo, hi, _, q_arm, prev = random_problem(seed)
+    assert np.all(lo <= hi)
+    assert np.all(np.abs(lo) <= LIMITS.velocity_max + 1e-12)
+    assert np.all(np.abs(hi) <= LIMITS.velocity_max + 1e-12)
+    assert np.all(np.abs(lo - prev) <= LIMITS.acceleration_max * 1e-3 + 1e-12)
+    assert np.all(np.abs(hi - prev) <= LIMITS.acceleration_max * 1e-3 + 1e-12)
+    inside = (q_arm > LIMITS.arm_min) & (q_arm < LIMITS.arm_max)
+    step_hi = q_arm + hi[3:] * 1e-3
+    assert np.all(step_hi[inside] <= LIMITS.arm_max[inside] + 1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000))
+def test_hqp_respects_every_bound(seed):
+    jac, b1, lo, hi, level2, *_ = random_problem(seed)
+    x = solve_hierarchy([(jac, b1)], lo, hi, weighted_objective(level2, np.ones(10)))
+    assert np.all(x >= lo) and np.all(x <= hi)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.01, 10.0))
+def test_level2_never_degrades_level1(seed, weight):
+    jac, b1, lo, hi, level2, *_ = random_problem(seed)
+    alone = solve_hierarchy([(jac, b1)], lo, hi)
+    both = solve_hierarchy([(jac, b1)], lo, hi, weighted_objective(level2, np.full(10, weight)))
+    r_alone = np.linalg.norm(jac @ alone - b1)
+    r_both = np.linalg.norm(jac @ both - b1)
+    assert r_both <= r_alone + 1e-6
+
+
+def test_unbounded_hierarchy_matches_the_nullspace_projection():
+    rng = np.random.default_rng(3)
+    jac, b1 = rng.normal(size=(6, 10)), rng.normal(size=6)
+    target = rng.normal(size=10)
+    x = solve_hierarchy([(jac, b1)], np.full(10, -1e3), np.full(10, 1e3), (np.eye(10), -target))
+    pinv = np.linalg.pinv(jac)
+    expected = pinv @ b1 + (np.eye(10) - pinv @ jac) @ target
+    np.testing.assert_allclose(x, expected, atol=1e-6)
+
+
+def test_clik_closes_the_loop_on_a_kinematic_arm():
+    """Integrating the HQP on a linear 'robot' x = J q drives x to a moving target."""
+    jac = np.random.default_rng(4).normal(size=(6, 10))
+    hqp = WholeBodyHqp(LIMITS, 1e-3, np.zeros(10), 4.0, 1.0, 1.0, 0.05)
+    rot = np.eye(3)
+    for k in range(3000):
+        t = k * 1e-3
+        x_d = np.array([0.05 * t, 0.02, 0.0])
+        q = hqp.q_star
+        x_a = (jac[:3] @ q, rot)
+        hqp.step(
+            jac * np.r_[1, 1, 1, 0, 0, 0][:, None],
+            (x_d, rot),
+            np.r_[0.05, 0, 0, 0, 0, 0],
+            x_a,
+            np.zeros(3),
+        )
+    assert np.linalg.norm(jac[:3] @ hqp.q_star - x_d) < 1e-3
+
+
+def test_joint_impedance_law_is_eq_10():
+    tau = joint_impedance_torque(
+        np.ones(7), np.zeros(7), np.zeros(7), np.ones(7), 20.0, 8.0, np.full(7, 0.5)
+    )
+    np.testing.assert_allclose(tau, 20.0 - 8.0 + 0.5)
+
+
+@pytest.mark.parametrize("feedback", [False, True])
+def test_measured_velocity_option_reaches_the_task(feedback):
+    hqp = WholeBodyHqp(LIMITS, 1e-3, np.zeros(10), 4.0, 1.0, 1.0, 0.05, feedback)
+    jac = np.eye(6, 10)
+    levels = hqp.levels(
+        jac,
+        (np.ones(3), np.eye(3)),
+        np.zeros(6),
+        (np.zeros(3), np.eye(3)),
+        np.zeros(3),
+        np.full(6, 0.1),
+    )
+    expected = 4.0 * np.ones(3) - (0.1 if feedback else 0.0)
+    np.testing.assert_allclose(levels[0][1][:3], expected)
