@@ -9,7 +9,7 @@ export PYOPENGL_PLATFORM ?= egl
 # Stages call `python`: make it the project environment's.
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: setup run test lint params clean-venv
+.PHONY: setup run test lint params bench clean-venv
 
 setup: $(STAMP)
 
@@ -30,6 +30,11 @@ test: setup
 
 lint: setup
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .
+
+# Speed figures (JSON), outside the test suite.
+bench: setup
+	$(BIN)/dvc repro kmp_fit
+	$(BIN)/python benchmarks/mm_branch.py
 
 # Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
 params: setup
