@@ -60,10 +60,11 @@ def main() -> None:
         )
         metrics["cases"][name] = {"via_error": case.via_errors, "kmp_seconds": case.fit_s}
     fit_s = gmr_s + min(c["kmp_seconds"] for c in metrics["cases"].values())
+    vs_gmr = kmp_vs_gmr(ref, k)
     metrics |= {
         "via_point_error_max": max(c["via_error"]["position_m"] for c in metrics["cases"].values()),
-        "kmp_vs_gmr_rmse": kmp_vs_gmr(ref, k)["position_m"],
-        "kmp_vs_gmr": kmp_vs_gmr(ref, k),
+        "kmp_vs_gmr_rmse": vs_gmr["position_m"],
+        "kmp_vs_gmr": vs_gmr,
         "fit_seconds": fit_s,
         "predict_seconds_26s_at_1khz": predict_seconds(ref, k, duration),
     }
