@@ -17,7 +17,6 @@ from locoman.artifacts import read_npz, write_json_atomic
 from locoman.config import load_params
 from locoman.hqp.replay import ReplayTask, replay
 from locoman.kmp.gmr import Reference
-from locoman.kmp.fit import pelvis_to_base
 from locoman.kmp.io import GMR
 from locoman.kmp.kmp import kmp_fit, kmp_predict
 from locoman.scene.io import load_scene_model, load_state
