@@ -77,7 +77,7 @@ class ReplayLog:
     qdot_star: np.ndarray
     q: np.ndarray
     torque: np.ndarray
-    gripper: np.ndarray
+    gripper_closed: np.ndarray
     obj_pos: np.ndarray
     obj_quat_wxyz: np.ndarray
     level1_residual: np.ndarray
@@ -141,7 +141,7 @@ def replay(
     log |= {"q_star": np.zeros((n, 10)), "qdot_star": np.zeros((n, 10)), "q": np.zeros((n, 10))}
     log |= {"torque": np.zeros((n, 7)), "obj_quat_wxyz": np.zeros((n, 4))}
     log |= {"qpos": np.zeros((n, model.nq))}
-    log |= {name: np.zeros(n) for name in ("gripper", "level1_residual", "hqp_step_s")}
+    log |= {name: np.zeros(n) for name in ("gripper_closed", "level1_residual", "hqp_step_s")}
     jac = np.zeros((6, model.nv))
     xdot_d = np.zeros(6)
     start = time.perf_counter()
@@ -183,7 +183,7 @@ def replay(
         log["qdot_star"][k] = qdot
         log["q"][k] = data.qpos[qadr]
         log["torque"][k] = data.actuator_force[arm_act]
-        log["gripper"][k] = float(closed)
+        log["gripper_closed"][k] = float(closed)
         log["obj_pos"][k] = data.xpos[obj_body]
         log["obj_quat_wxyz"][k] = data.xquat[obj_body]
         log["qpos"][k] = data.qpos

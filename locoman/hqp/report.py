@@ -103,10 +103,7 @@ def write_replay(out: Path, name: str, log: ReplayLog, model: mujoco.MjModel, dt
     write_npz(
         out / f"replay_{name}.npz",
         REPLAY,
-        {
-            f.name: getattr(log, "gripper" if f.name == "gripper_closed" else f.name)
-            for f in REPLAY.fields
-        },
+        {f.name: getattr(log, f.name) for f in REPLAY.fields},
     )
     step = max(1, round(1.0 / (EXPORT_RATE_HZ * dt)))
     sl = slice(None, None, step)
@@ -132,7 +129,7 @@ def write_replay(out: Path, name: str, log: ReplayLog, model: mujoco.MjModel, dt
                 "q": log.q[sl],
                 "qdot_star": log.qdot_star[sl],
                 "torque": log.torque[sl],
-                "gripper_closed": log.gripper[sl],
+                "gripper_closed": log.gripper_closed[sl],
             },
         },
     )
