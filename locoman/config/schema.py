@@ -11,6 +11,7 @@ from typing import Any
 
 from omegaconf import MISSING
 
+from locoman.config.perception import PerceptionCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
 
 
@@ -200,11 +201,15 @@ class RootCfg:
     demos: DemosCfg = field(default_factory=DemosCfg)
     kmp: KmpCfg = field(default_factory=KmpCfg)
     hqp: HqpCfg = field(default_factory=HqpCfg)
+    perception: PerceptionCfg = field(default_factory=PerceptionCfg)
 
     def check(self) -> list[tuple[str, str]]:
         errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]
         if self.demos.scenario not in self.scenarios:
             errors.append(("demos.scenario", f"{self.demos.scenario!r} is not a scenario"))
+        for name in self.perception.scenarios:
+            if name not in self.scenarios or self.scenarios[name].robot != "g1":
+                errors.append(("perception.scenarios", f"{name!r} is not a G1 scenario"))
         return errors
 
 

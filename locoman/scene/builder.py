@@ -18,7 +18,7 @@ from locoman.config.schema import ObjectCfg, ScenarioCfg
 from locoman.scene import g1, mobile_manipulator, rotations
 from locoman.scene.objects import BOX, CYLINDER, SPHERE, object_geometry
 
-_SHAPES = {
+GEOM_TYPES = {
     BOX: mujoco.mjtGeom.mjGEOM_BOX,
     CYLINDER: mujoco.mjtGeom.mjGEOM_CYLINDER,
     SPHERE: mujoco.mjtGeom.mjGEOM_SPHERE,
@@ -86,7 +86,7 @@ def _add_object(spec: mujoco.MjSpec, name: str, obj: ObjectCfg) -> dict[str, Any
     for part, volume in zip(geometry.primitives, volumes, strict=True):
         geom = body.add_geom(
             name=f"{name}/{part.name}",
-            type=_SHAPES[part.shape],
+            type=GEOM_TYPES[part.shape],
             size=list(part.size) + [0.0] * (3 - len(part.size)),
             pos=list(part.pos),
             rgba=list(obj.rgba),
@@ -104,6 +104,7 @@ def _add_object(spec: mujoco.MjSpec, name: str, obj: ObjectCfg) -> dict[str, Any
         "mass_kg": obj.mass,
         "movable": obj.mass is not None,
         "friction": obj.friction,
+        "rgba": list(obj.rgba),
         "primitives": [dataclasses.asdict(p) for p in geometry.primitives],
         "contact_patches": [dataclasses.asdict(p) for p in geometry.patches],
     }

@@ -28,7 +28,7 @@ OBJECTS = ArtifactSchema(
         Field(
             "objects",
             "object",
-            doc="name -> kind, size_m, pos_m, quat_wxyz, mass_kg, movable, "
+            doc="name -> kind, size_m, pos_m, quat_wxyz, mass_kg, movable, rgba, "
             "friction, primitives, contact_patches (object frame, [m])",
         ),
     ),

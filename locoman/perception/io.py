@@ -1,0 +1,135 @@
+"""Artifacts of the perception stages ``generate``, ``masks`` and ``clouds``.
+
+Layout under ``data/<scenario>/``::
+
+    generate/prompts.json                  augmented prompts, one entry per subtask
+    generate/subtask_<i>/image.png         R_g
+    generate/subtask_<i>/sim_rgb.png       R_s
+    generate/subtask_<i>/sim_view.npz      D_s, true intrinsics, camera and object poses
+    generate/ground_truth/subtask_<i>.npz  scoring only: never read by the pipeline's logic
+    masks/subtask_<i>.npz                  object masks in R_g and R_s, 2D keypoints
+    masks/pose_<i>.npz                     3D human pose estimate in R_g's camera frame
+    clouds/subtask_<i>.npz                 depth and intrinsics of R_g, object clouds, 3D points
+    clouds/contact_sheet_<i>.png           what a person checks at a glance
+
+Cameras use OpenCV axes (x right, y down, z forward); ``T_a_b`` maps frame b into frame a.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from locoman.artifacts import ArtifactSchema, Field
+from locoman.errors import ArtifactError
+
+PROMPTS_FILE = "prompts.json"
+GROUND_TRUTH_DIR = "ground_truth"
+
+PROMPTS = ArtifactSchema(
+    "perception.prompts",
+    1,
+    "generate",
+    (
+        Field("backend", "str", doc="image backend that made the images"),
+        Field(
+            "subtasks",
+            "list",
+            doc="index, prompt, augmented_prompt, object, contacts, image, sim_image, sim_view",
+        ),
+    ),
+)
+SIM_VIEW = ArtifactSchema(
+    "perception.sim_view",
+    1,
+    "generate",
+    (
+        Field("depth_m", "float32", ("H", "W"), "m", "D_s: depth along the optical axis, 0 = none"),
+        Field("K", "float64", (3, 3), "px", "true intrinsics of R_s"),
+        Field("T_world_cam", "float64", (4, 4), "m", "camera pose in the scene (OpenCV axes)"),
+        Field("T_world_object", "float64", (4, 4), "m", "the object's pose in the scene"),
+    ),
+)
+GROUND_TRUTH = ArtifactSchema(
+    "perception.ground_truth",
+    1,
+    "generate",
+    (
+        Field("K", "float64", (3, 3), "px", "true intrinsics of R_g"),
+        Field("T_world_cam", "float64", (4, 4), "m", "R_g camera pose, generation world"),
+        Field("depth_m", "float32", ("H", "W"), "m", "true depth of R_g, 0 = sky"),
+        Field("object_mask", "bool", ("H", "W"), "-", "the object's pixels in R_g"),
+        Field("human_mask", "bool", ("H", "W"), "-", "the demonstrator's pixels in R_g"),
+        Field("sim_object_mask", "bool", ("Hs", "Ws"), "-", "the object's pixels in R_s"),
+        Field("keypoint_names", "str", ("K",)),
+        Field("keypoints_px", "float64", ("K", 2), "px", "(u, v) pixel index coordinates"),
+        Field("keypoints_world_m", "float64", ("K", 3), "m", "generation world"),
+        Field("keypoints_visible", "bool", ("K",), "-", "in the image and not occluded"),
+        Field("contact_names", "str", ("C",), "-", "end effectors of the plan's contacts"),
+        Field("contact_patches", "str", ("C",), "-", "patch touched, or floor"),
+        Field("contact_uv", "float64", ("C", 2), "-", "normalised patch coordinates"),
+        Field("contact_points_variant_m", "float64", ("C", 3), "m", "variant's object frame"),
+        Field("contact_points_object_m", "float64", ("C", 3), "m", "scene object's frame"),
+        Field("T_world_object", "float64", (4, 4), "m", "variant pose, generation world"),
+        Field("variant_size_m", "float64", ("S",), "m", "extents of the drawn variant"),
+        Field("object_size_m", "float64", ("S",), "m", "extents of the scene's object"),
+        Field("variant_rgba", "float64", (4,)),
+        Field("variant_textured", "bool", ()),
+        Field("human_qpos", "float64", (43,), "mixed", "demonstrator MuJoCo qpos (quat w,x,y,z)"),
+    ),
+)
+MASKS = ArtifactSchema(
+    "perception.masks",
+    1,
+    "masks",
+    (
+        Field("object_mask", "bool", ("H", "W"), "-", "object pixels in R_g"),
+        Field("sim_object_mask", "bool", ("Hs", "Ws"), "-", "object pixels in R_s"),
+        Field("keypoint_names", "str", ("K",)),
+        Field("keypoints_px", "float64", ("K", 2), "px", "(u, v) in R_g; NaN when not found"),
+        Field("keypoint_confidence", "float64", ("K",), "-", "in [0, 1]"),
+    ),
+)
+POSE = ArtifactSchema(
+    "perception.pose",
+    1,
+    "masks",
+    (
+        Field("keypoint_names", "str", ("K",)),
+        Field("keypoints_cam_m", "float64", ("K", 3), "m", "3D keypoints, R_g camera frame"),
+        Field("joint_names", "str", ("J",), "-", "human_description joints"),
+        Field("joint_angles_rad", "float64", ("J",), "rad", "estimated joint angles"),
+        Field("T_cam_pelvis", "float64", (4, 4), "m", "pelvis pose in R_g's camera frame"),
+    ),
+)
+CLOUDS = ArtifactSchema(
+    "perception.clouds",
+    1,
+    "clouds",
+    (
+        Field("depth_m", "float32", ("H", "W"), "m", "estimated depth D_g of R_g, 0 = none"),
+        Field("K", "float64", (3, 3), "px", "intrinsics used to lift R_g"),
+        Field("points_gen_m", "float64", ("N", 3), "m", "object cloud of R_g, camera frame"),
+        Field("points_sim_m", "float64", ("M", 3), "m", "object cloud of R_s, scene world"),
+        Field("keypoint_names", "str", ("K",)),
+        Field("keypoints_cam_m", "float64", ("K", 3), "m", "lifted 2D keypoints; NaN if none"),
+    ),
+)
+
+
+def subtask_dir(stage_dir: Path, index: int) -> Path:
+    """``<stage_dir>/subtask_<index>/``."""
+    return Path(stage_dir) / f"subtask_{index}"
+
+
+def read_png(path: str | Path, producer: str) -> np.ndarray:
+    """An RGB uint8 image; a clear error naming the producing stage when missing or corrupt."""
+    path = Path(path)
+    if not path.is_file():
+        raise ArtifactError(f"image {path} is missing (rerun `dvc repro {producer}`)")
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ArtifactError(f"image {path} is not a readable PNG (rerun `dvc repro {producer}`)")
+    return np.ascontiguousarray(bgr[:, :, ::-1])

@@ -1,0 +1,28 @@
+"""Stage `generate`: per subtask, the augmented prompt, the image R_g and the sim view R_s, D_s.
+
+Usage: python stages/generate.py <scenario>   (reads params.yaml and data/<scenario>/scene/,
+writes data/<scenario>/generate/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.perception.generate import generate_scenario
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    generate_scenario(
+        scenario,
+        DATA_DIR / scenario / "scene",
+        stage_dir(scenario, "generate"),
+        cfg.perception.generate,
+        cfg.seed,
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])
