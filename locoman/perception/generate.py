@@ -83,9 +83,9 @@ def generate_scenario(
                 "augmented_prompt": prompt,
                 "object": name,
                 "contacts": sub["contacts"],
-                "image": f"{folder.name}/image.png",
-                "sim_image": f"{folder.name}/sim_rgb.png",
-                "sim_view": f"{folder.name}/sim_view.npz",
+                "image": str((folder / "image.png").relative_to(out_dir)),
+                "sim_image": str((folder / "sim_rgb.png").relative_to(out_dir)),
+                "sim_view": str((folder / "sim_view.npz").relative_to(out_dir)),
             }
         )
     write_json(out_dir / PROMPTS_FILE, PROMPTS, {"backend": cfg.backend, "subtasks": entries})

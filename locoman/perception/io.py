@@ -2,15 +2,18 @@
 
 Layout under ``data/<scenario>/``::
 
-    generate/prompts.json                  augmented prompts, one entry per subtask
-    generate/subtask_<i>/image.png         R_g
-    generate/subtask_<i>/sim_rgb.png       R_s
-    generate/subtask_<i>/sim_view.npz      D_s, true intrinsics, camera and object poses
-    generate/ground_truth/subtask_<i>.npz  scoring only: never read by the pipeline's logic
-    masks/subtask_<i>.npz                  object masks in R_g and R_s, 2D keypoints
-    masks/pose_<i>.npz                     3D human pose estimate in R_g's camera frame
-    clouds/subtask_<i>.npz                 depth and intrinsics of R_g, object clouds, 3D points
-    clouds/contact_sheet_<i>.png           what a person checks at a glance
+    generate/prompts.json                         augmented prompts, one entry per subtask
+    generate/images/subtask_<i>/image.png         R_g
+    generate/images/subtask_<i>/sim_rgb.png       R_s
+    generate/images/subtask_<i>/sim_view.npz      D_s, true intrinsics, camera and object poses
+    generate/ground_truth/subtask_<i>.npz         scoring only (see below)
+    masks/subtasks/subtask_<i>.npz                object masks in R_g and R_s, 2D keypoints
+    masks/subtasks/pose_<i>.npz                   3D human pose estimate in R_g's camera frame
+    clouds/subtasks/subtask_<i>.npz               depth and intrinsics of R_g, clouds, 3D points
+    clouds/contact_sheets/subtask_<i>.png         what a person checks at a glance
+
+The ground truth is read only to score a stage and by the backends that stand in for a learned
+model (``render`` masks, jittered keypoints, the depth error model), never by the geometry.
 
 Cameras use OpenCV axes (x right, y down, z forward); ``T_a_b`` maps frame b into frame a.
 """
@@ -26,7 +29,10 @@ from locoman.artifacts import ArtifactSchema, Field
 from locoman.errors import ArtifactError
 
 PROMPTS_FILE = "prompts.json"
+IMAGES_DIR = "images"
 GROUND_TRUTH_DIR = "ground_truth"
+SUBTASKS_DIR = "subtasks"
+CONTACT_SHEETS_DIR = "contact_sheets"
 
 PROMPTS = ArtifactSchema(
     "perception.prompts",
@@ -119,9 +125,9 @@ CLOUDS = ArtifactSchema(
 )
 
 
-def subtask_dir(stage_dir: Path, index: int) -> Path:
-    """``<stage_dir>/subtask_<index>/``."""
-    return Path(stage_dir) / f"subtask_{index}"
+def subtask_dir(generate_dir: Path, index: int) -> Path:
+    """``<generate_dir>/images/subtask_<index>/``."""
+    return Path(generate_dir) / IMAGES_DIR / f"subtask_{index}"
 
 
 def read_png(path: str | Path, producer: str) -> np.ndarray:

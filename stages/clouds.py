@@ -1,0 +1,30 @@
+"""Stage `clouds`: depth and intrinsics of R_g, object clouds of R_g and R_s, lifted keypoints.
+
+Usage: python stages/clouds.py <scenario>   (reads params.yaml, data/<scenario>/generate/ and
+masks/, writes data/<scenario>/clouds/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.perception.clouds import clouds_scenario
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    clouds_scenario(
+        scenario,
+        DATA_DIR / scenario / "generate",
+        DATA_DIR / scenario / "masks",
+        stage_dir(scenario, "clouds"),
+        cfg.perception.clouds,
+        cfg.perception.depth_error,
+        cfg.seed,
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])

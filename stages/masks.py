@@ -1,0 +1,28 @@
+"""Stage `masks`: object masks in R_g and R_s, 2D human keypoints and the 3D pose in R_g.
+
+Usage: python stages/masks.py <scenario>   (reads params.yaml and data/<scenario>/generate/,
+writes data/<scenario>/masks/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.perception.masks import masks_scenario
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    masks_scenario(
+        scenario,
+        DATA_DIR / scenario / "generate",
+        stage_dir(scenario, "masks"),
+        cfg.perception.masks,
+        cfg.seed,
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])
