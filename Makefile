@@ -35,6 +35,8 @@ lint: setup
 bench: setup
 	$(BIN)/dvc repro kmp_fit
 	$(BIN)/python benchmarks/mm_branch.py
+	$(BIN)/dvc repro scene
+	$(BIN)/python benchmarks/perception.py
 
 # Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
 params: setup

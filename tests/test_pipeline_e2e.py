@@ -64,3 +64,31 @@ def test_bad_params_fail_at_start_up_naming_the_key(workdir):
         assert "scenario.colour" in result.stderr
     finally:
         params.write_text(original)
+
+
+def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
+    dvc = [sys.executable, "-m", "dvc"]
+    first = _run([*dvc, "repro", "clouds@tiny"], workdir)
+    assert first.returncode == 0, first.stderr
+    root = workdir / "data" / "tiny"
+    plan = json.loads((root / "scene" / "plan.json").read_text())
+    n = len(plan["subtasks"])
+    for i in range(n):
+        for path in (
+            f"generate/images/subtask_{i}/image.png",
+            f"generate/images/subtask_{i}/sim_rgb.png",
+            f"generate/ground_truth/subtask_{i}.npz",
+            f"masks/subtasks/subtask_{i}.npz",
+            f"masks/subtasks/pose_{i}.npz",
+            f"clouds/subtasks/subtask_{i}.npz",
+            f"clouds/contact_sheets/subtask_{i}.png",
+        ):
+            assert (root / path).is_file(), path
+    masks = json.loads((root / "masks" / "metrics.json").read_text())
+    assert masks["backend"] == "render" and masks["mask_iou_min"] >= 0.95
+    assert "grabcut" in masks["backends"]
+    clouds = json.loads((root / "clouds" / "metrics.json").read_text())
+    assert 0.0 < clouds["chamfer_m"] < 0.5
+    second = _run([*dvc, "repro", "clouds@tiny"], workdir)
+    assert second.returncode == 0, second.stderr
+    assert "Running stage" not in second.stdout, second.stdout

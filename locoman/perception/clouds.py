@@ -79,7 +79,7 @@ def lift_keypoints(px: np.ndarray, depth: np.ndarray, K: np.ndarray) -> np.ndarr
     for k, (u, v) in enumerate(px):
         if not np.isfinite(u + v):
             continue
-        iu, iv = int(round(u)), int(round(v))
+        iu, iv = round(float(u)), round(float(v))
         if not (0 <= iu < w and 0 <= iv < h):
             continue
         window = depth[max(iv - r, 0) : iv + r + 1, max(iu - r, 0) : iu + r + 1]
@@ -190,6 +190,7 @@ def clouds_scenario(
         metrics |= {
             "chamfer_m": float(np.median(chamfers)),
             "chamfer_max_m": float(max(chamfers)),
+            "chamfer_centred_m": float(np.median([r["chamfer_centred_m"] for r in rows])),
             "keypoint_lift_error_median_m": _median(
                 [r["keypoint_lift_error_median_m"] for r in rows]
             ),
@@ -212,13 +213,18 @@ def _score(
     cfg: CloudsCfg,
 ) -> dict[str, float | None]:
     """Chamfer distance of the R_g cloud to the true visible surface (the true depth lifted
-    with the true intrinsics), and the error of the lifted hand and foot points [m]."""
-    surface = clean_cloud(camera.backproject(truth["depth_m"], truth["object_mask"], truth["K"]), cfg)
+    with the true intrinsics), as is and with both centroids at the origin, and the error of
+    the lifted hand and foot points [m]."""
+    surface = clean_cloud(
+        camera.backproject(truth["depth_m"], truth["object_mask"], truth["K"]), cfg
+    )
     true_kp = camera.to_camera(truth["keypoints_world_m"], truth["T_world_cam"])
     idx = [names.index(n) for n in CONTACT_KEYPOINTS]
     err = np.linalg.norm(kp3[idx] - true_kp[idx], axis=1)
     return {
         "chamfer_m": chamfer(gen, surface),
+        # Shape alone: registration in contact transfer absorbs a translation.
+        "chamfer_centred_m": chamfer(gen - gen.mean(axis=0), surface - surface.mean(axis=0)),
         "keypoint_lift_error_median_m": (
             float(np.nanmedian(err)) if np.isfinite(err).any() else None
         ),

@@ -192,7 +192,7 @@ def contact_targets(
         if top is not None and top.centre[2] <= step_height_max:
             for name in feet:
                 side = 1.0 if name.startswith("left") else -1.0
-                point = np.asarray(top.centre) + [0.0, side * STANCE_HALF_WIDTH, 0.0]
+                point = np.asarray(top.centre) + np.array([0.0, side * STANCE_HALF_WIDTH, 0.0])
                 targets.append(
                     ContactTarget(name, "top", point, np.asarray(top.normal), _uv_of(top, point))
                 )
@@ -348,8 +348,9 @@ def _solve_ik(
     dof = model.jnt_dofadr[hinges]
     adr = model.jnt_qposadr[hinges]
     lo_q, hi_q = model.jnt_range[hinges, 0], model.jnt_range[hinges, 1]
-    residual, it = np.inf, 0
-    for it in range(1, iterations + 1):
+    residual, run = np.inf, 0
+    for _ in range(iterations):
+        run += 1
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
@@ -396,7 +397,7 @@ def _solve_ik(
         dq = lsq_linear(A, b, bounds=(np.minimum(lo, 0.0), np.maximum(hi, 0.0))).x
         mujoco.mj_integratePos(model, q, dq, 1.0)
         q[adr] = np.clip(q[adr], lo_q, hi_q)
-    return Pose(qpos=q, residual_m=residual, iterations=it)
+    return Pose(qpos=q, residual_m=residual, iterations=run)
 
 
 def keypoints_world(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:

@@ -56,9 +56,7 @@ class DepthAnythingEstimator:
     """
 
     def __init__(self, weights_dir: str | None, device: str = "cpu") -> None:
-        path = check_weights_dir(
-            weights_dir, "perception.clouds.depth_weights_dir", "config.json"
-        )
+        path = check_weights_dir(weights_dir, "perception.clouds.depth_weights_dir", "config.json")
         transformers = _require("transformers")
         try:
             self.model = transformers.AutoModelForDepthEstimation.from_pretrained(

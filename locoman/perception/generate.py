@@ -30,7 +30,9 @@ from locoman.scene.objects import ContactPatch
 
 def subtask_rng(seed: int, scenario: str, index: int) -> np.random.Generator:
     """Independent, reproducible random stream of one subtask."""
-    return np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(scenario.encode()), index]))
+    return np.random.default_rng(
+        np.random.SeedSequence([seed, zlib.crc32(scenario.encode()), index])
+    )
 
 
 def generate_scenario(

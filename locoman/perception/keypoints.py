@@ -80,9 +80,7 @@ def mediapipe_keypoints(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return px, conf
 
 
-def keypoint_errors(
-    estimate: np.ndarray, truth: dict[str, np.ndarray]
-) -> dict[str, float | None]:
+def keypoint_errors(estimate: np.ndarray, truth: dict[str, np.ndarray]) -> dict[str, float | None]:
     """Pixel error statistics over visible keypoints (None when none was found)."""
     visible = truth["keypoints_visible"]
     err = np.linalg.norm(estimate - truth["keypoints_px"], axis=1)[visible]

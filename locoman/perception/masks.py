@@ -6,6 +6,7 @@ pixels), whichever one is selected, so one run gives the comparison table.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 from typing import Any
@@ -117,12 +118,10 @@ def masks_scenario(
             }
             row["keypoints"] = {cfg.keypoints: kp.keypoint_errors(px, truth)}
             if cfg.keypoints != "mediapipe":
-                try:
+                with contextlib.suppress(ModelError):  # optional package
                     row["keypoints"]["mediapipe"] = kp.keypoint_errors(
                         kp.mediapipe_keypoints(rgb)[0], truth
                     )
-                except ModelError:
-                    pass
         rows.append(row)
     metrics = _summary(rows, cfg)
     write_json_atomic(out_dir / "metrics.json", metrics)
@@ -164,16 +163,12 @@ def _summary(rows: list[dict[str, Any]], cfg: MasksCfg) -> dict[str, Any]:
     if scored:
         metrics["mask_iou"] = float(np.median([r["mask_iou"][cfg.backend] for r in scored]))
         metrics["mask_iou_min"] = float(min(r["mask_iou"][cfg.backend] for r in scored))
-        metrics["sim_mask_iou"] = float(
-            np.median([r["sim_mask_iou"][cfg.backend] for r in scored])
-        )
+        metrics["sim_mask_iou"] = float(np.median([r["sim_mask_iou"][cfg.backend] for r in scored]))
         metrics["backends"] = {
             name: {
                 "mask_iou_median": float(np.median([r["mask_iou"][name] for r in scored])),
                 "mask_iou_min": float(min(r["mask_iou"][name] for r in scored)),
-                "sim_mask_iou_median": float(
-                    np.median([r["sim_mask_iou"][name] for r in scored])
-                ),
+                "sim_mask_iou_median": float(np.median([r["sim_mask_iou"][name] for r in scored])),
             }
             for name in scored[0]["mask_iou"]
         }

@@ -106,7 +106,7 @@ def render_subtask(
     targets = demonstrator.contact_targets(
         variant.kind, geometry.patches, subtask["contacts"], variant.size, cfg.step_height_max_m
     )
-    lifted = {t.effector: (t.point + [0.0, 0.0, z0], t.normal) for t in targets}
+    lifted = {t.effector: (t.point + np.array([0.0, 0.0, z0]), t.normal) for t in targets}
     view = cfg.view
     yaw = np.deg2rad(rng.uniform(-view.yaw_jitter_deg, view.yaw_jitter_deg))
     lateral = rng.uniform(-view.lateral_jitter_m, view.lateral_jitter_m)
@@ -186,8 +186,8 @@ def _place_person(
         centre = np.mean(list(feet.values()), axis=0)[:2]
         for name, (p, n) in lifted.items():
             if name.endswith("_foot"):
-                targets[name] = (p + [0.0, lateral, 0.0], n)
-        return centre + [0.0, lateral], targets
+                targets[name] = (p + np.array([0.0, lateral, 0.0]), n)
+        return centre + np.array([0.0, lateral]), targets
     anchor = np.mean(hands, axis=0)[:2] if hands else np.zeros(2)
     centre = anchor + rot @ np.array([-standoff, lateral])
     for name, side in (("left_foot", 1.0), ("right_foot", -1.0)):
@@ -389,7 +389,7 @@ def _visible(
     h, w = depth.shape
     out = np.zeros(len(kp_px), dtype=bool)
     for k, ((u, v), z) in enumerate(zip(kp_px, kp_depth, strict=True)):
-        iu, iv = int(round(u)), int(round(v))
+        iu, iv = round(float(u)), round(float(v))
         if 0 <= iu < w and 0 <= iv < h and z > 0:
             seen = depth[iv, iu]
             # Joint centres lie inside the limbs, up to ~8 cm behind the body's surface.

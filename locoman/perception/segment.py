@@ -55,8 +55,9 @@ def grabcut_mask(rgb: np.ndarray, box: tuple[int, int, int, int], iterations: in
     labels = np.zeros(rgb.shape[:2], np.uint8)
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     bgr = np.ascontiguousarray(rgb[:, :, ::-1])
-    cv2.grabCut(bgr, labels, (x0, y0, x1 - x0 + 1, y1 - y0 + 1), bgd, fgd, iterations,
-                cv2.GC_INIT_WITH_RECT)
+    cv2.grabCut(
+        bgr, labels, (x0, y0, x1 - x0 + 1, y1 - y0 + 1), bgd, fgd, iterations, cv2.GC_INIT_WITH_RECT
+    )
     return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
 
 
@@ -91,7 +92,9 @@ class SamSegmenter:
         with torch.no_grad():
             out = self.model(**inputs, multimask_output=True)
         masks = self.processor.image_processor.post_process_masks(
-            out.pred_masks.cpu(), inputs["original_sizes"].cpu(), inputs["reshaped_input_sizes"].cpu()
+            out.pred_masks.cpu(),
+            inputs["original_sizes"].cpu(),
+            inputs["reshaped_input_sizes"].cpu(),
         )[0][0]
         best = int(out.iou_scores[0, 0].argmax())
         return masks[best].numpy().astype(bool)
