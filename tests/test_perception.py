@@ -224,6 +224,9 @@ def test_learned_backends_fail_clearly_without_weights(tmp_path):
         load_flux_pipeline(FluxCfg(weights_dir=str(tmp_path)))
     with pytest.raises(ModelError, match=r"config\.json"):
         SamSegmenter(str(tmp_path))
+    (tmp_path / "model_index.json").write_text("{}")
+    with pytest.raises(ModelError, match=r"diffusers|cannot load"):
+        load_flux_pipeline(FluxCfg(weights_dir=str(tmp_path)))
 
 
 def test_perception_config_rejects_bad_values():

@@ -14,7 +14,7 @@ import numpy as np
 
 from locoman.config.perception import DepthErrorCfg
 from locoman.errors import ModelError
-from locoman.perception.flux import _require, check_weights_dir
+from locoman.perception.weights import check_weights_dir, require_package
 
 
 def depth_edges(depth: np.ndarray, jump_m: float) -> np.ndarray:
@@ -57,7 +57,7 @@ class DepthAnythingEstimator:
 
     def __init__(self, weights_dir: str | None, device: str = "cpu") -> None:
         path = check_weights_dir(weights_dir, "perception.clouds.depth_weights_dir", "config.json")
-        transformers = _require("transformers")
+        transformers = require_package("transformers")
         try:
             self.model = transformers.AutoModelForDepthEstimation.from_pretrained(
                 str(path), local_files_only=True
@@ -72,7 +72,7 @@ class DepthAnythingEstimator:
 
     def __call__(self, rgb: np.ndarray) -> np.ndarray:
         """Depth (H, W) float32 [m] of an RGB image, resized to the image."""
-        torch: Any = _require("torch")
+        torch: Any = require_package("torch")
         inputs = self.processor(images=rgb, return_tensors="pt").to(self.device)
         with torch.no_grad():
             pred = self.model(**inputs).predicted_depth

@@ -9,45 +9,13 @@ stages that score against it report that they cannot.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from locoman.config.perception import FluxCfg, GenerateCfg
 from locoman.errors import ModelError
-
-
-def _require(module: str) -> Any:
-    try:
-        return __import__(module)
-    except ImportError:
-        raise ModelError(
-            f"the learned backend needs the {module!r} package: "
-            f"`.venv/bin/pip install {module}` (it is not part of the default install)"
-        ) from None
-
-
-def check_weights_dir(weights_dir: str | None, key: str, marker: str) -> Path:
-    """The weights folder, or a :class:`ModelError` saying which config key to set.
-
-    Args:
-        weights_dir: Configured folder (None when unset).
-        key: Full config key, for the message.
-        marker: A file the folder must hold (``model_index.json``, ``config.json``).
-    """
-    if not weights_dir:
-        raise ModelError(
-            f"{key} is not set: point it to a local folder holding the model "
-            f"(with {marker}); nothing is downloaded"
-        )
-    path = Path(weights_dir)
-    if not (path / marker).is_file():
-        raise ModelError(
-            f"{key} = {str(path)!r} holds no {marker}: the weights are absent or incomplete "
-            "(save the model there with save_pretrained)"
-        )
-    return path
+from locoman.perception.weights import check_weights_dir, require_package
 
 
 def load_flux_pipeline(cfg: FluxCfg) -> Any:
@@ -56,7 +24,7 @@ def load_flux_pipeline(cfg: FluxCfg) -> Any:
     path = check_weights_dir(
         cfg.weights_dir, "perception.generate.flux.weights_dir", "model_index.json"
     )
-    diffusers = _require("diffusers")
+    diffusers = require_package("diffusers")
     try:
         pipe = diffusers.DiffusionPipeline.from_pretrained(str(path), local_files_only=True)
     except (OSError, ValueError) as exc:
@@ -66,7 +34,7 @@ def load_flux_pipeline(cfg: FluxCfg) -> Any:
 
 def generate_image(pipe: Any, prompt: str, cfg: GenerateCfg, seed: int) -> np.ndarray:
     """One image (H, W, 3) uint8 for ``prompt``, reproducible for a given ``seed``."""
-    torch = _require("torch")
+    torch = require_package("torch")
     generator = torch.Generator(device="cpu").manual_seed(seed)
     out = pipe(
         prompt=prompt,

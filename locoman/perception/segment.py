@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from locoman.errors import ModelError, SceneError
-from locoman.perception.flux import _require, check_weights_dir
+from locoman.perception.weights import check_weights_dir, require_package
 
 
 def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -72,7 +72,7 @@ class SamSegmenter:
 
     def __init__(self, weights_dir: str | None, device: str = "cpu") -> None:
         path = check_weights_dir(weights_dir, "perception.masks.sam_weights_dir", "config.json")
-        transformers = _require("transformers")
+        transformers = require_package("transformers")
         try:
             self.model = transformers.SamModel.from_pretrained(str(path), local_files_only=True)
             self.processor = transformers.SamProcessor.from_pretrained(
@@ -85,7 +85,7 @@ class SamSegmenter:
 
     def __call__(self, rgb: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """The best-scoring mask (H, W) bool for ``box`` (x0, y0, x1, y1) [px]."""
-        torch: Any = _require("torch")
+        torch: Any = require_package("torch")
         inputs = self.processor(
             images=rgb, input_boxes=[[[float(c) for c in box]]], return_tensors="pt"
         ).to(self.device)

@@ -1,0 +1,44 @@
+"""Loading learned models: optional packages and local weight folders, with clear errors.
+
+Weights are never downloaded: every learned backend reads a folder named in ``conf/``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from locoman.errors import ModelError
+
+
+def require_package(module: str) -> Any:
+    """Import an optional package, or raise a :class:`ModelError` saying how to install it."""
+    try:
+        return __import__(module)
+    except ImportError:
+        raise ModelError(
+            f"the learned backend needs the {module!r} package: "
+            f"`.venv/bin/pip install {module}` (it is not part of the default install)"
+        ) from None
+
+
+def check_weights_dir(weights_dir: str | None, key: str, marker: str) -> Path:
+    """The weights folder, or a :class:`ModelError` saying which config key to set.
+
+    Args:
+        weights_dir: Configured folder (None when unset).
+        key: Full config key, for the message.
+        marker: A file the folder must hold (``model_index.json``, ``config.json``).
+    """
+    if not weights_dir:
+        raise ModelError(
+            f"{key} is not set: point it to a local folder holding the model "
+            f"(with {marker}); nothing is downloaded"
+        )
+    path = Path(weights_dir)
+    if not (path / marker).is_file():
+        raise ModelError(
+            f"{key} = {str(path)!r} holds no {marker}: the weights are absent or incomplete "
+            "(save the model there with save_pretrained)"
+        )
+    return path
