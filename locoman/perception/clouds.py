@@ -32,7 +32,7 @@ from locoman.perception.io import (
     SUBTASKS_DIR,
     read_png,
 )
-from locoman.perception.masks import load_truth
+from locoman.perception.masks import load_truth, median_or_none
 
 CLOUD_SEED_OFFSET = 2  # the clouds stage draws from its own stream
 KEYPOINT_WINDOW_PX = 2  # half size of the window whose median depth lifts a keypoint
@@ -191,18 +191,13 @@ def clouds_scenario(
             "chamfer_m": float(np.median(chamfers)),
             "chamfer_max_m": float(max(chamfers)),
             "chamfer_centred_m": float(np.median([r["chamfer_centred_m"] for r in rows])),
-            "keypoint_lift_error_median_m": _median(
+            "keypoint_lift_error_median_m": median_or_none(
                 [r["keypoint_lift_error_median_m"] for r in rows]
             ),
         }
     metrics["per_subtask"] = rows
     write_json_atomic(out_dir / "metrics.json", metrics)
     return metrics
-
-
-def _median(values: list[float | None]) -> float | None:
-    found = [v for v in values if v is not None]
-    return float(np.median(found)) if found else None
 
 
 def _score(

@@ -173,13 +173,13 @@ def _summary(rows: list[dict[str, Any]], cfg: MasksCfg) -> dict[str, Any]:
             for name in scored[0]["mask_iou"]
         }
         err = [r["keypoints"][cfg.keypoints] for r in scored]
-        metrics["keypoint_error_median_px"] = _median([e["median_px"] for e in err])
+        metrics["keypoint_error_median_px"] = median_or_none([e["median_px"] for e in err])
         metrics["keypoint_error_max_px"] = max(
             (e["max_px"] for e in err if e["max_px"] is not None), default=None
         )
         metrics["keypoint_backends"] = {
             name: {
-                "median_px": _median([r["keypoints"][name]["median_px"] for r in scored]),
+                "median_px": median_or_none([r["keypoints"][name]["median_px"] for r in scored]),
                 "detected_fraction": float(
                     np.mean([r["keypoints"][name]["detected_fraction"] for r in scored])
                 ),
@@ -190,6 +190,7 @@ def _summary(rows: list[dict[str, Any]], cfg: MasksCfg) -> dict[str, Any]:
     return metrics
 
 
-def _median(values: list[float | None]) -> float | None:
+def median_or_none(values: list[float | None]) -> float | None:
+    """Median of the values that exist, or None when none does."""
     found = [v for v in values if v is not None]
     return float(np.median(found)) if found else None
