@@ -68,7 +68,7 @@ def test_bad_params_fail_at_start_up_naming_the_key(workdir):
 
 def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
     dvc = [sys.executable, "-m", "dvc"]
-    first = _run([*dvc, "repro", "clouds@tiny"], workdir)
+    first = _run([*dvc, "repro", "contacts@tiny"], workdir)
     assert first.returncode == 0, first.stderr
     root = workdir / "data" / "tiny"
     plan = json.loads((root / "scene" / "plan.json").read_text())
@@ -82,6 +82,8 @@ def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
             f"masks/subtasks/pose_{i}.npz",
             f"clouds/subtasks/subtask_{i}.npz",
             f"clouds/contact_sheets/subtask_{i}.png",
+            f"contacts/subtasks/subtask_{i}.npz",
+            f"contacts/plots/subtask_{i}.png",
         ):
             assert (root / path).is_file(), path
     masks = json.loads((root / "masks" / "metrics.json").read_text())
@@ -89,6 +91,9 @@ def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
     assert "grabcut" in masks["backends"]
     clouds = json.loads((root / "clouds" / "metrics.json").read_text())
     assert 0.0 < clouds["chamfer_m"] < 0.5
-    second = _run([*dvc, "repro", "clouds@tiny"], workdir)
+    contacts = json.loads((root / "contacts" / "metrics.json").read_text())
+    assert contacts["contact_error_median_m"] < contacts["naive_contact_error_median_m"]
+    assert contacts["contact_error_median_m"] < 0.1
+    second = _run([*dvc, "repro", "contacts@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout

@@ -11,6 +11,7 @@ from typing import Any
 
 from omegaconf import MISSING
 
+from locoman.config.contacts import ContactsCfg
 from locoman.config.perception import PerceptionCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
 
@@ -202,6 +203,7 @@ class RootCfg:
     kmp: KmpCfg = field(default_factory=KmpCfg)
     hqp: HqpCfg = field(default_factory=HqpCfg)
     perception: PerceptionCfg = field(default_factory=PerceptionCfg)
+    contacts: ContactsCfg = field(default_factory=ContactsCfg)
 
     def check(self) -> list[tuple[str, str]]:
         errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]

@@ -14,6 +14,7 @@ import numpy as np
 from locoman.errors import ModelError
 from locoman.perception.camera import to_camera
 from locoman.perception.demonstrator import KEYPOINTS
+from locoman.scene.rotations import quat_wxyz_to_matrix
 
 # BlazePose landmark indices averaged into each of our keypoints (person's left/right).
 BLAZEPOSE = {
@@ -110,14 +111,7 @@ def pose_estimate(
     kp_cam = to_camera(truth["keypoints_world_m"], truth["T_world_cam"])
     q = truth["human_qpos"]
     T_world_pelvis = np.eye(4)
-    w, x, y, z = q[3:7]
-    T_world_pelvis[:3, :3] = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    T_world_pelvis[:3, :3] = quat_wxyz_to_matrix(q[3:7])
     T_world_pelvis[:3, 3] = q[:3]
     return {
         "keypoint_names": truth["keypoint_names"],

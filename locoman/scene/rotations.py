@@ -45,3 +45,8 @@ def wxyz_to_xyzw(quat_wxyz: np.ndarray) -> np.ndarray:
 def yaw_quat_wxyz(yaw: float) -> np.ndarray:
     """Quaternion (w, x, y, z) of a rotation by ``yaw`` [rad] about world z."""
     return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def quat_wxyz_to_matrix(quat_wxyz: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a quaternion (w, x, y, z) (normalised first)."""
+    return Rotation.from_quat(wxyz_to_xyzw(quat_wxyz)).as_matrix()

@@ -1,0 +1,137 @@
+"""Typed configuration of contact transfer (paper A, Sec. III-A.2, third step; Sec. V-B).
+
+Section ``contacts``: the semantic score pool, the sampled SVD + ICP registration, how the
+hands and feet are lifted to 3D, and the method (``registration`` or the paper's
+geometry-unaware ``naive`` baseline), so that the contact ablation is a parameter change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from locoman.config.perception import _choice, _range
+
+METHODS = ("registration", "naive")
+DESCRIPTORS = ("sift", "learned")
+TRANSFORMS = ("rigid", "similarity")
+LIFTS = ("depth", "pose")
+
+
+@dataclass
+class PoolCfg:
+    """The semantic score pool: for each point sampled on the object in R_g, the top-N most
+    plausible matches on the object in R_s, with their scores.
+
+    Attributes:
+        descriptor: ``sift`` (dense SIFT plus the position in the object's box, on the CPU)
+            or ``learned`` (a TorchScript feature extractor from ``weights_file``, e.g. an
+            exported DINOv2 or SD+DINO backbone).
+        weights_file: TorchScript file of the ``learned`` backend; nothing is downloaded.
+        points: Points sampled on the object's mask in R_g [-].
+        top_n: Matches kept per sampled point [-].
+        grid_px: Spacing of the candidate grid in R_s [px].
+        patch_fraction: SIFT patch size as a fraction of the object's size in the image [-].
+        layout_weight: Weight of the position inside the object's box against appearance [-].
+    """
+
+    descriptor: str = "sift"
+    weights_file: str | None = None
+    points: int = 64
+    top_n: int = 5
+    grid_px: int = 4
+    patch_fraction: float = 0.3
+    layout_weight: float = 1.0
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = _choice("descriptor", self.descriptor, DESCRIPTORS)
+        if self.points < 3 or self.top_n < 1 or self.grid_px < 1:
+            errors.append(("points", "needs points >= 3, top_n >= 1 and grid_px >= 1"))
+        if not 0.02 <= self.patch_fraction <= 1.0:
+            errors.append(("patch_fraction", f"must be in [0.02, 1], got {self.patch_fraction}"))
+        if self.layout_weight < 0.0:
+            errors.append(("layout_weight", "must be >= 0"))
+        return errors
+
+
+@dataclass
+class RegistrationCfg:
+    """Sampling-based registration: SVD on sampled matches, ICP, keep the best overlap.
+
+    Attributes:
+        iterations: Hypotheses drawn from the pool (paper: 10); the first takes every top-1.
+        transform: ``rigid`` (Kabsch) or ``similarity`` (Umeyama, with a scale, since the
+            generated image's depth and intrinsics are off by a factor).
+        scale_range: The similarity's scale is clamped to this range [-].
+        trim_rounds: Refits of the SVD on the half of the matches that fit best; 0 is the
+            paper's single SVD.
+        symmetry_turns: Each hypothesis is also tried turned by 360/turns degrees about the
+            object's vertical axis (4: boxes and tables; 1: no turns).
+        max_tilt_deg: Hypotheses that tilt the person's ground plane further than this from
+            the horizontal are dropped (objects stand upright) [deg].
+        overlap_tolerance: Hypotheses within this overlap of the best compete on how well
+            they face the person towards the object's approach side [-].
+        model_points: Samples of the simulated object's surface [-].
+        icp_points: The R_g cloud is thinned to this many points for ICP [-].
+        icp_iterations: ICP iterations per hypothesis.
+        icp_distance: ICP pairs longer than this fraction of the object's size are dropped.
+        overlap_distance: A point overlaps the other cloud within this fraction of the
+            object's size [-].
+    """
+
+    iterations: int = 10
+    transform: str = "similarity"
+    scale_range: list[float] = field(default_factory=lambda: [0.6, 1.6])
+    trim_rounds: int = 2
+    symmetry_turns: int = 4
+    max_tilt_deg: float = 20.0
+    overlap_tolerance: float = 0.05
+    model_points: int = 3000
+    icp_points: int = 600
+    icp_iterations: int = 30
+    icp_distance: float = 0.15
+    overlap_distance: float = 0.03
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = _choice("transform", self.transform, TRANSFORMS)
+        errors += _range("scale_range", self.scale_range, 0.05, 20.0)
+        if self.iterations < 1 or self.icp_iterations < 1 or self.trim_rounds < 0:
+            errors.append(("iterations", "needs iterations, icp_iterations >= 1, trims >= 0"))
+        if not 0.0 < self.max_tilt_deg <= 180.0:
+            errors.append(("max_tilt_deg", f"must be in (0, 180], got {self.max_tilt_deg}"))
+        if self.symmetry_turns < 1 or not 0.0 <= self.overlap_tolerance <= 1.0:
+            errors.append(("symmetry_turns", "needs turns >= 1 and a tolerance in [0, 1]"))
+        if not (0.0 < self.icp_distance <= 2.0 and 0.0 < self.overlap_distance <= 1.0):
+            errors.append(("icp_distance", "distances are fractions of the object size > 0"))
+        if self.model_points < 100 or self.icp_points < 10:
+            errors.append(("model_points", "needs model_points >= 100 and icp_points >= 10"))
+        return errors
+
+
+@dataclass
+class ContactsCfg:
+    """Stage ``contacts``: contact locations L on the simulated objects and the human's
+    placement relative to the object.
+
+    Attributes:
+        method: ``registration`` (the paper's method) or ``naive`` (the top-1 semantic match
+            of each contact, no registration: the geometry-unaware baseline of Sec. V-B).
+        lift: ``depth`` (the paper: the 2D hand and foot keypoints lifted with D_g) or
+            ``pose`` (the 3D pose estimate anchored to D_g at its visible keypoints, which
+            also places hands hidden behind the object).
+        anchor_quantile: Quantile of the keypoints' depth ratios (lifted / pose) taken as
+            the anchor's depth scale; high, because occluders and the body's surface only
+            make the lifted depth nearer [-].
+    """
+
+    method: str = "registration"
+    lift: str = "pose"
+    anchor_quantile: float = 0.9
+    pool: PoolCfg = field(default_factory=PoolCfg)
+    registration: RegistrationCfg = field(default_factory=RegistrationCfg)
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = _choice("method", self.method, METHODS)
+        errors += _choice("lift", self.lift, LIFTS)
+        if not 0.0 <= self.anchor_quantile <= 1.0:
+            errors.append(("anchor_quantile", f"must be in [0, 1], got {self.anchor_quantile}"))
+        return errors

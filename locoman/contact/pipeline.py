@@ -1,0 +1,175 @@
+"""Stage ``contacts`` for one scenario: load the perception artifacts, transfer, score, plot."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from locoman.artifacts import read_json, read_npz, write_json_atomic, write_npz, write_png
+from locoman.config.contacts import ContactsCfg
+from locoman.contact import semantic
+from locoman.contact.io import CONTACTS, PLOTS_DIR, subtask_file
+from locoman.contact.kabsch import decompose_similarity
+from locoman.contact.plot import contact_plot
+from locoman.contact.scoring import score_subtask, summarise, true_contacts
+from locoman.contact.transfer import SubtaskInputs, Transfer, primitives_of, transfer_subtask
+from locoman.errors import ArtifactError
+from locoman.perception.generate import subtask_rng
+from locoman.perception.io import CLOUDS, MASKS, POSE, PROMPTS, PROMPTS_FILE, SIM_VIEW, read_png
+from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
+from locoman.perception.masks import load_truth, median_or_none
+from locoman.scene.io import load_objects
+
+CONTACTS_SEED_OFFSET = 3  # the contacts stage draws from its own stream
+
+
+def load_inputs(
+    entry: dict[str, Any],
+    objects: dict[str, Any],
+    generate_dir: Path,
+    masks_dir: Path,
+    clouds_dir: Path,
+) -> SubtaskInputs:
+    """Everything contact transfer reads for one subtask of ``prompts.json``."""
+    i = entry["index"]
+    where = f"subtask {i} ({entry['prompt']!r}, object {entry['object']!r})"
+    if entry["object"] not in objects:
+        raise ArtifactError(f"{where}: the scene has no object {entry['object']!r}")
+    sim = read_npz(generate_dir / entry["sim_view"], SIM_VIEW)
+    masks = read_npz(masks_dir / PERCEPTION_SUBTASKS / f"subtask_{i}.npz", MASKS)
+    pose = read_npz(masks_dir / PERCEPTION_SUBTASKS / f"pose_{i}.npz", POSE)
+    clouds = read_npz(clouds_dir / PERCEPTION_SUBTASKS / f"subtask_{i}.npz", CLOUDS)
+    names = [str(n) for n in clouds["keypoint_names"]]
+    if [str(n) for n in pose["keypoint_names"]] != names:
+        raise ArtifactError(f"{where}: the pose and the clouds name different keypoints")
+    return SubtaskInputs(
+        where=where,
+        effectors=list(entry["contacts"]),
+        rgb=read_png(generate_dir / entry["image"], "generate"),
+        sim_rgb=read_png(generate_dir / entry["sim_image"], "generate"),
+        mask=masks["object_mask"],
+        sim_mask=masks["sim_object_mask"],
+        depth=clouds["depth_m"],
+        K=clouds["K"],
+        sim_depth=sim["depth_m"],
+        sim_K=sim["K"],
+        T_world_sim=sim["T_world_cam"],
+        cloud=clouds["points_gen_m"],
+        sim_cloud=clouds["points_sim_m"],
+        keypoint_names=names,
+        keypoints_px=masks["keypoints_px"],
+        keypoints_lifted=clouds["keypoints_cam_m"],
+        pose_keypoints=pose["keypoints_cam_m"],
+        T_cam_pelvis=pose["T_cam_pelvis"],
+        T_world_object=sim["T_world_object"],
+        primitives=primitives_of(objects[entry["object"]]),
+    )
+
+
+def write_transfer(
+    path: Path, entry: dict[str, Any], inputs: SubtaskInputs, r: Transfer, method: str
+) -> None:
+    """The ``contact.transfer`` artifact of one subtask."""
+    reg = r.registration
+    T_object_world = np.linalg.inv(inputs.T_world_object)
+    write_npz(
+        path,
+        CONTACTS,
+        {
+            "method": np.array(method),
+            "object": np.array(entry["object"]),
+            "effectors": np.array(inputs.effectors),
+            "surfaces": np.array(r.surfaces),
+            "points_world_m": r.points_world,
+            "points_object_m": r.points_world @ T_object_world[:3, :3].T + T_object_world[:3, 3],
+            "normals_world": r.normals_world,
+            "raw_points_world_m": r.raw_points_world,
+            "T_world_object": inputs.T_world_object,
+            "T_world_gen": reg.transform,
+            "scale": np.array(decompose_similarity(reg.transform)[0]),
+            "overlap": np.array(reg.overlap),
+            "iteration": np.array(reg.iteration, dtype=np.int64),
+            "T_world_pelvis": r.T_world_pelvis,
+            "T_object_pelvis": T_object_world @ r.T_world_pelvis,
+            "pool_gen_px": r.pool.gen_px,
+            "pool_sim_px": r.pool.sim_px,
+            "pool_scores": r.pool.scores,
+        },
+    )
+
+
+def contacts_scenario(
+    scenario: str,
+    scene_dir: Path,
+    generate_dir: Path,
+    masks_dir: Path,
+    clouds_dir: Path,
+    out_dir: Path,
+    cfg: ContactsCfg,
+    seed: int,
+) -> dict[str, Any]:
+    """Transfer the contacts of every subtask; write artifacts, plots and metrics."""
+    prompts = read_json(generate_dir / PROMPTS_FILE, PROMPTS)
+    objects = load_objects(scene_dir)
+    describer = semantic.make_describer(cfg.pool)
+    rows: list[dict[str, Any]] = []
+    for entry in prompts["subtasks"]:
+        i = entry["index"]
+        t0 = time.perf_counter()
+        inputs = load_inputs(entry, objects, generate_dir, masks_dir, clouds_dir)
+        result = transfer_subtask(
+            inputs, cfg, describer, subtask_rng(seed + CONTACTS_SEED_OFFSET, scenario, i)
+        )
+        seconds = time.perf_counter() - t0
+        write_transfer(subtask_file(out_dir, i), entry, inputs, result, cfg.method)
+        truth = load_truth(generate_dir, i)
+        truth_world = (
+            None if truth is None else true_contacts(truth, inputs.effectors, inputs.T_world_object)
+        )
+        title = f"{scenario} #{i}: {entry['prompt']}"
+        write_png(
+            out_dir / PLOTS_DIR / f"subtask_{i}.png",
+            contact_plot(inputs, result, truth_world, title),
+        )
+        row: dict[str, Any] = {
+            "index": i,
+            "effectors": inputs.effectors,
+            "surfaces": result.surfaces,
+            "iterations_to_best": result.registration.iteration,
+            "overlap": result.registration.overlap,
+            "scale": decompose_similarity(result.registration.transform)[0],
+            "seconds": seconds,
+        }
+        if truth is not None:
+            row |= score_subtask(truth, inputs, result)
+        rows.append(row)
+    metrics = _aggregate(rows, cfg)
+    write_json_atomic(out_dir / "metrics.json", metrics)
+    return metrics
+
+
+def _aggregate(rows: list[dict[str, Any]], cfg: ContactsCfg) -> dict[str, Any]:
+    scored = [r for r in rows if "contact_errors_m" in r]
+    ours = [e for r in scored for e in r["contact_errors_m"]]
+    naive = [e for r in scored for e in r["naive_contact_errors_m"]]
+    if cfg.method == "naive":
+        ours = naive
+    metrics: dict[str, Any] = {
+        "method": cfg.method,
+        "lift": cfg.lift,
+        "descriptor": cfg.pool.descriptor,
+        **summarise(ours, "contact_error"),
+        **summarise(naive, "naive_contact_error"),
+        "rotation_error_deg": median_or_none([r.get("rotation_error_deg") for r in scored]),
+        "translation_error_m": median_or_none([r.get("translation_error_m") for r in scored]),
+        "pelvis_position_error_m": median_or_none(
+            [r.get("pelvis_position_error_m") for r in scored]
+        ),
+        "iterations_to_best": float(np.median([r["iterations_to_best"] for r in rows])),
+        "seconds_per_subtask": float(np.median([r["seconds"] for r in rows])),
+        "per_subtask": rows,
+    }
+    return metrics

@@ -1,0 +1,292 @@
+"""Contact transfer: 2D contacts of the generated image -> 3D contact locations L in the scene.
+
+Paper A, Sec. III-A.2, third step. Per subtask:
+
+1. the semantic score pool between the object in R_g and in R_s (:mod:`.semantic`);
+2. sampled SVD + ICP registration of R_g's object cloud onto the simulated object
+   (:mod:`.registration`), which gives the transform T_world_gen;
+3. the hands and feet lifted to 3D (:mod:`.lift`), mapped by T_world_gen and projected onto
+   the closest surface of the simulated object (feet: the closest surface they can stand on,
+   the object's tops or the floor), so that no contact lies inside the object (:mod:`.surface`);
+4. the human's placement: the pelvis of the 3D pose mapped by the same transform, relative to
+   the object, for retargeting.
+
+The ``naive`` method is the geometry-unaware baseline of Sec. V-B: each contact is the top-1
+semantic match, in R_s, of the object pixel under the hand or foot, lifted with D_s.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from locoman.config.contacts import ContactsCfg
+from locoman.contact import semantic
+from locoman.contact.kabsch import apply, decompose_similarity
+from locoman.contact.lift import SOLE_KEYPOINTS, fit_anchor, support_up
+from locoman.contact.registration import Person, Registration, Surface, register
+from locoman.contact.surface import project_to_support, project_to_surface, sample_surface
+from locoman.errors import SceneError
+from locoman.perception import camera
+from locoman.perception.demonstrator import LOCAL_FORWARD
+from locoman.scene.objects import Primitive
+
+FLOOR_Z = 0.0  # [m] world height of the floor
+
+
+@dataclasses.dataclass(frozen=True)
+class SubtaskInputs:
+    """What contact transfer reads for one subtask (all from upstream artifacts).
+
+    Attributes:
+        where: Names the subtask in errors.
+        effectors: End effectors the plan puts in contact.
+        rgb: R_g (H, W, 3).
+        sim_rgb: R_s (Hs, Ws, 3).
+        mask: Object mask in R_g.
+        sim_mask: Object mask in R_s.
+        depth: D_g [m] and ``K``: the intrinsics that lifted R_g [px].
+        sim_depth: D_s [m], ``sim_K`` its true intrinsics, ``T_world_sim`` its camera pose.
+        cloud: R_g object cloud, gen frame [m]; ``sim_cloud``: R_s cloud, world [m].
+        keypoint_names: Names of the keypoints below.
+        keypoints_px: 2D keypoints in R_g [px] (NaN when not found).
+        keypoints_lifted: Keypoints lifted with D_g, gen frame [m] (NaN when no depth).
+        pose_keypoints: 3D pose estimate, R_g's camera frame [m].
+        T_cam_pelvis: Pelvis pose of the 3D pose estimate.
+        T_world_object: The object's pose in the scene.
+        primitives: The object's primitive shapes, object frame.
+    """
+
+    where: str
+    effectors: list[str]
+    rgb: np.ndarray
+    sim_rgb: np.ndarray
+    mask: np.ndarray
+    sim_mask: np.ndarray
+    depth: np.ndarray
+    K: np.ndarray
+    sim_depth: np.ndarray
+    sim_K: np.ndarray
+    T_world_sim: np.ndarray
+    cloud: np.ndarray
+    sim_cloud: np.ndarray
+    keypoint_names: list[str]
+    keypoints_px: np.ndarray
+    keypoints_lifted: np.ndarray
+    pose_keypoints: np.ndarray
+    T_cam_pelvis: np.ndarray
+    T_world_object: np.ndarray
+    primitives: tuple[Primitive, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class Transfer:
+    """Result of one subtask.
+
+    Attributes:
+        points_world: (C, 3) contact locations L of the chosen method [m].
+        normals_world: (C, 3) outward normals at L.
+        surfaces: ``object`` or ``floor`` per contact.
+        raw_points_world: (C, 3) L before the surface projection [m].
+        naive_world: (C, 3) the naive baseline's contacts [m].
+        registration: The best hypothesis (it also places the human for ``naive``).
+        T_world_pelvis: The human's pelvis placed in the scene.
+        pool: The semantic score pool.
+        lifted_gen: (C, 3) hands and feet in the gen frame [m].
+    """
+
+    points_world: np.ndarray
+    normals_world: np.ndarray
+    surfaces: list[str]
+    raw_points_world: np.ndarray
+    naive_world: np.ndarray
+    registration: Registration
+    T_world_pelvis: np.ndarray
+    pool: semantic.ScorePool
+    lifted_gen: np.ndarray
+
+
+def lift_pixels(px: np.ndarray, depth: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Camera-frame points (P, 3) [m] of integer pixels (P, 2) and whether each has depth."""
+    iu, iv = px[:, 0].astype(int), px[:, 1].astype(int)
+    z = depth[iv, iu].astype(float)
+    return camera.pixel_rays(px, K) * z[:, None], z > 0.0
+
+
+def build_pool(
+    inputs: SubtaskInputs,
+    describer: semantic.Describer,
+    points: int,
+    top_n: int,
+    grid_px: int,
+    rng: np.random.Generator,
+) -> tuple[semantic.ScorePool, np.ndarray, np.ndarray]:
+    """The score pool, plus the described grid of R_s (pixels (P, 2), descriptors (P, D))."""
+    gen_px = semantic.sample_pixels(
+        inputs.mask, inputs.depth > 0.0, points, rng, f"{inputs.where}, generated image"
+    )
+    sim_px = semantic.mask_pixels(inputs.sim_mask, inputs.sim_depth > 0.0, grid_px)
+    if len(sim_px) < semantic.MIN_POOL_POINTS:
+        raise SceneError(
+            f"{inputs.where}: the simulated view's object mask has {len(sim_px)} grid pixels "
+            f"with depth; contact transfer needs at least {semantic.MIN_POOL_POINTS}"
+        )
+    sim_desc = describer(inputs.sim_rgb, inputs.sim_mask, sim_px)
+    gen_desc = describer(inputs.rgb, inputs.mask, gen_px)
+    return semantic.score_pool(gen_desc, sim_desc, sim_px, gen_px, top_n), sim_px, sim_desc
+
+
+def lift_effectors(
+    inputs: SubtaskInputs, cfg: ContactsCfg
+) -> tuple[np.ndarray, np.ndarray, Person]:
+    """Hands and feet of the plan (C, 3), the pelvis (3,) in the gen frame [m], and the
+    person's up and facing directions there.
+
+    Raises:
+        SceneError: When a contact keypoint has no depth (``lift = depth``), or too few
+            keypoints anchor the pose (``lift = pose``).
+    """
+    names = inputs.keypoint_names
+    idx = [names.index(e) for e in inputs.effectors]
+    px = inputs.keypoints_px
+    h, w = inputs.mask.shape
+    inside = np.isfinite(px).all(axis=1)
+    iu = np.clip(np.nan_to_num(px[:, 0]).round().astype(int), 0, w - 1)
+    iv = np.clip(np.nan_to_num(px[:, 1]).round().astype(int), 0, h - 1)
+    on_object = inside & inputs.mask[iv, iu]
+    try:
+        anchor = fit_anchor(
+            inputs.pose_keypoints, inputs.keypoints_lifted, ~on_object, cfg.anchor_quantile
+        )
+    except ValueError as err:
+        raise SceneError(
+            f"{inputs.where}: cannot anchor the 3D pose to the depth ({err}); check the "
+            "keypoints and the depth of the generated image"
+        ) from None
+    pelvis = anchor(inputs.T_cam_pelvis[:3, 3])
+    soles = anchor(inputs.pose_keypoints[[names.index(n) for n in SOLE_KEYPOINTS]])
+    # Directions through the anchor's scaling: a normal maps by its inverse, a vector by it.
+    up = support_up(soles, pelvis)
+    facing = anchor.scale * (inputs.T_cam_pelvis[:3, :3] @ LOCAL_FORWARD)
+    person = Person(up, facing / np.linalg.norm(facing))
+    if cfg.lift == "pose":
+        return anchor(inputs.pose_keypoints[idx]), pelvis, person
+    lifted = inputs.keypoints_lifted[idx]
+    missing = [e for e, p in zip(inputs.effectors, lifted, strict=True) if not np.isfinite(p).all()]
+    if missing:
+        raise SceneError(
+            f"{inputs.where}: no depth under the keypoints of {missing}; use "
+            "contacts.lift = pose, which places them from the 3D pose"
+        )
+    return lifted, pelvis, person
+
+
+def project_contacts(
+    points_world: np.ndarray, effectors: list[str], inputs: SubtaskInputs
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """L projected onto the object: hands onto its closest surface point, feet onto the
+    closest upward surface (its tops or the floor). Returns points, normals (world) and the
+    surface each landed on."""
+    T = inputs.T_world_object
+    local = camera.transform(points_world, np.linalg.inv(T))
+    out = np.empty_like(local)
+    normals = np.empty_like(local)
+    surfaces = []
+    floor_z = FLOOR_Z - float(T[2, 3])  # object frames are upright (yaw only)
+    for k, name in enumerate(effectors):
+        if name.endswith("_foot"):
+            q, n = project_to_support(local[k : k + 1], inputs.primitives, floor_z)
+            surfaces.append("floor" if abs(q[0, 2] - floor_z) < 1e-9 else "object")
+        else:
+            q, n = project_to_surface(local[k : k + 1], inputs.primitives)
+            surfaces.append("object")
+        out[k], normals[k] = q[0], n[0]
+    return camera.transform(out, T), normals @ T[:3, :3].T, surfaces
+
+
+def naive_contacts(
+    inputs: SubtaskInputs,
+    describer: semantic.Describer,
+    sim_px: np.ndarray,
+    sim_desc: np.ndarray,
+    lifted_gen: np.ndarray,
+) -> np.ndarray:
+    """The geometry-unaware baseline (C, 3) [m]: for each contact, the object pixel of R_g
+    nearest to its 2D keypoint, its top-1 match in R_s, lifted with D_s into the world."""
+    names = inputs.keypoint_names
+    px = inputs.keypoints_px[[names.index(e) for e in inputs.effectors]]
+    # A keypoint the 2D detector missed falls back to the lifted point's projection.
+    fallback = camera.project(lifted_gen, inputs.K) - 0.5
+    px = np.where(np.isfinite(px), px, fallback)
+    vs, us = np.nonzero(inputs.mask & (inputs.depth > 0.0))
+    object_px = np.column_stack([us, vs]).astype(float)
+    nearest = np.linalg.norm(object_px[None] - px[:, None], axis=2).argmin(axis=1)
+    gen_px = object_px[nearest]
+    matched, _ = semantic.best_match(describer(inputs.rgb, inputs.mask, gen_px), sim_desc, sim_px)
+    points, _ = lift_pixels(matched, inputs.sim_depth, inputs.sim_K)
+    return camera.transform(points, inputs.T_world_sim)
+
+
+def object_surface(inputs: SubtaskInputs, points: int, rng: np.random.Generator) -> Surface:
+    """The simulated object's whole surface in the scene world, which registration fits."""
+    local, normals = sample_surface(inputs.primitives, points, rng)
+    T = inputs.T_world_object
+    return Surface(camera.transform(local, T), normals @ T[:3, :3].T, T)
+
+
+def transfer_subtask(
+    inputs: SubtaskInputs,
+    cfg: ContactsCfg,
+    describer: semantic.Describer,
+    rng: np.random.Generator,
+) -> Transfer:
+    """Contact locations L, the object transform and the human placement of one subtask."""
+    pool, sim_px, sim_desc = build_pool(
+        inputs, describer, cfg.pool.points, cfg.pool.top_n, cfg.pool.grid_px, rng
+    )
+    lifted_gen, pelvis_gen, person = lift_effectors(inputs, cfg)
+    naive = naive_contacts(inputs, describer, sim_px, sim_desc, lifted_gen)
+    src, _ = lift_pixels(pool.gen_px, inputs.depth, inputs.K)
+    s, n = pool.sim_px.shape[:2]
+    dst_cam, valid = lift_pixels(pool.sim_px.reshape(-1, 2), inputs.sim_depth, inputs.sim_K)
+    dst = camera.transform(dst_cam, inputs.T_world_sim).reshape(s, n, 3)
+    reg = register(
+        inputs.cloud,
+        object_surface(inputs, cfg.registration.model_points, rng),
+        src,
+        dst,
+        valid.reshape(s, n),
+        person,
+        cfg.registration,
+        rng,
+        inputs.where,
+    )
+    T = reg.transform
+    _, rot, _ = decompose_similarity(T)
+    T_world_pelvis = np.eye(4)
+    T_world_pelvis[:3, :3] = rot @ inputs.T_cam_pelvis[:3, :3]
+    T_world_pelvis[:3, 3] = apply(T, pelvis_gen[None])[0]
+    if cfg.method == "naive":
+        raw = naive
+        points, normals, surfaces = naive, _naive_normals(naive, inputs), ["object"] * len(naive)
+    else:
+        raw = apply(T, lifted_gen)
+        points, normals, surfaces = project_contacts(raw, inputs.effectors, inputs)
+    return Transfer(points, normals, surfaces, raw, naive, reg, T_world_pelvis, pool, lifted_gen)
+
+
+def _naive_normals(points: np.ndarray, inputs: SubtaskInputs) -> np.ndarray:
+    """Outward normals of the object surface nearest to naive contacts."""
+    T = inputs.T_world_object
+    _, normals = project_to_surface(camera.transform(points, np.linalg.inv(T)), inputs.primitives)
+    return normals @ T[:3, :3].T
+
+
+def primitives_of(obj: dict[str, Any]) -> tuple[Primitive, ...]:
+    """Primitive shapes of an object table entry."""
+    return tuple(
+        Primitive(p["shape"], tuple(p["size"]), tuple(p["pos"]), p["name"])
+        for p in obj["primitives"]
+    )

@@ -1,0 +1,33 @@
+"""Stage `contacts`: contact locations L on the simulated objects, object transforms, human
+placement, and their errors against ground truth.
+
+Usage: python stages/contacts.py <scenario>   (reads params.yaml, data/<scenario>/scene/,
+generate/, masks/ and clouds/, writes data/<scenario>/contacts/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.contact.pipeline import contacts_scenario
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    root = DATA_DIR / scenario
+    contacts_scenario(
+        scenario,
+        root / "scene",
+        root / "generate",
+        root / "masks",
+        root / "clouds",
+        stage_dir(scenario, "contacts"),
+        cfg.contacts,
+        cfg.seed,
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])

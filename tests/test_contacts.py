@@ -1,0 +1,279 @@
+"""Contact transfer: SVD, ICP, surface projection, pose anchoring, pool and clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from locoman.config.contacts import ContactsCfg, PoolCfg, RegistrationCfg
+from locoman.contact import semantic
+from locoman.contact.kabsch import apply, decompose_similarity, similarity_matrix, umeyama
+from locoman.contact.lift import fit_anchor, support_up
+from locoman.contact.registration import (
+    Surface,
+    draw_hypotheses,
+    icp,
+    level,
+    overlap_scores,
+    select,
+    tilt_errors,
+    turn_about_object,
+)
+from locoman.contact.surface import (
+    closest_on_primitive,
+    project_to_support,
+    project_to_surface,
+    sample_surface,
+    signed_distance,
+)
+from locoman.errors import ModelError, SceneError
+from locoman.scene.objects import OBJECT_KINDS, Primitive, object_geometry
+
+SIZES = {
+    "box": (0.4, 0.3, 0.2),
+    "cylinder": (0.05, 0.25),
+    "table": (0.6, 0.8, 0.72),
+    "shelf": (0.35, 0.8, 1.55),
+    "basket": (0.35, 0.45, 0.22),
+    "trolley": (0.8, 0.5, 0.55),
+}
+
+
+def _rotation(seed: int) -> np.ndarray:
+    return Rotation.random(random_state=seed).as_matrix()
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    n=st.integers(3, 60),
+    scale=st.floats(0.2, 5.0),
+    with_scale=st.booleans(),
+)
+def test_umeyama_recovers_random_transforms_exactly(seed, n, scale, with_scale):
+    rng = np.random.default_rng(seed)
+    src = rng.normal(size=(n, 3))
+    rot, trans = _rotation(seed), rng.normal(size=3) * 3.0
+    s = scale if with_scale else 1.0
+    dst = s * src @ rot.T + trans
+    got_s, got_r, got_t = umeyama(src, dst, with_scale=with_scale)
+    assert got_s == pytest.approx(s, rel=1e-9)
+    np.testing.assert_allclose(got_r, rot, atol=1e-9)
+    np.testing.assert_allclose(got_t, trans, atol=1e-8)
+    np.testing.assert_allclose(np.linalg.det(got_r), 1.0, atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_umeyama_is_batched_and_ignores_zero_weight_outliers(seed):
+    rng = np.random.default_rng(seed)
+    src = rng.normal(size=(4, 20, 3))
+    rots = np.stack([_rotation(seed + k) for k in range(4)])
+    dst = np.einsum("hij,hnj->hni", rots, src) + 1.0
+    weights = np.ones((4, 20))
+    dst[:, :5] += rng.normal(size=(4, 5, 3)) * 10.0  # gross outliers, weighted out
+    weights[:, :5] = 0.0
+    _, got, trans = umeyama(src, dst, weights)
+    np.testing.assert_allclose(got, rots, atol=1e-9)
+    np.testing.assert_allclose(trans, np.ones((4, 3)), atol=1e-9)
+
+
+def test_similarity_matrix_round_trips():
+    rot = _rotation(3)
+    matrix = similarity_matrix(1.3, rot, np.array([0.1, -0.2, 0.3]))
+    s, r, t = decompose_similarity(matrix)
+    assert s == pytest.approx(1.3)
+    np.testing.assert_allclose(r, rot, atol=1e-12)
+    np.testing.assert_allclose(apply(matrix, np.zeros((1, 3)))[0], t)
+
+
+def _box_surface(rng: np.random.Generator) -> tuple[Surface, np.ndarray]:
+    geometry = object_geometry("box", (0.4, 0.3, 0.2))
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("z", 0.4).as_matrix()
+    pose[:3, 3] = (1.0, 0.5, 0.7)
+    local, normals = sample_surface(geometry.primitives, 3000, rng)
+    return Surface(local @ pose[:3, :3].T + pose[:3, 3], normals @ pose[:3, :3].T, pose), pose
+
+
+def test_icp_converges_from_a_perturbed_start():
+    rng = np.random.default_rng(0)
+    surface, _ = _box_surface(rng)
+    truth = similarity_matrix(1.1, _rotation(5), np.array([0.2, -0.1, 0.4]))
+    camera_world = apply(truth, np.zeros((1, 3)))[0]
+    # What a camera at the gen frame's origin sees: the faces turned towards it.
+    facing = (surface.normals * (camera_world - surface.points)).sum(axis=1) > 0.0
+    seen = surface.points[facing][::2]
+    source = apply(np.linalg.inv(truth), seen) + rng.normal(0.0, 0.002, seen.shape)
+    wrong = Rotation.from_rotvec(np.array([0.1, -0.12, 0.08])).as_matrix()  # about 10 deg
+    start = similarity_matrix(1.0, wrong @ _rotation(5), np.array([0.25, -0.05, 0.43]))
+    refined = icp(source, surface, start[None], 0.1, 40, True, (0.5, 2.0))[0]
+    s, rot, _ = decompose_similarity(refined)
+    assert s == pytest.approx(1.1, abs=0.02)
+    angle = np.degrees(Rotation.from_matrix(rot @ _rotation(5).T).magnitude())
+    assert angle < 1.5
+    np.testing.assert_allclose(apply(refined, source), seen, atol=0.01)
+    assert overlap_scores(source, surface, refined[None], 0.02)[0] > 0.9
+    assert overlap_scores(source, surface, start[None], 0.02)[0] < 0.5
+
+
+def test_turns_and_levelling_keep_the_object_upright():
+    rng = np.random.default_rng(1)
+    _, pose = _box_surface(rng)
+    tilted = similarity_matrix(0.9, _rotation(11), np.array([0.3, 0.2, 1.0]))
+    up_gen = np.array([0.0, -1.0, 0.2]) / np.linalg.norm([0.0, -1.0, 0.2])
+    pivot = np.array([0.0, 0.1, 2.5])
+    levelled = level(tilted[None], up_gen, pivot)
+    assert tilt_errors(levelled, up_gen)[0] < 1e-6
+    np.testing.assert_allclose(apply(levelled, pivot[None]), apply(tilted[None], pivot[None]))
+    turned = turn_about_object(levelled, pose, 4)
+    assert turned.shape == (1, 4, 4, 4)
+    assert np.all(tilt_errors(turned[0], up_gen) < 1e-6)
+
+
+def test_selection_prefers_upright_then_facing_among_near_best():
+    cfg = RegistrationCfg(overlap_tolerance=0.05, max_tilt_deg=20.0)
+    overlaps = np.array([0.9, 0.88, 0.7, 0.95])
+    tilts = np.array([2.0, 3.0, 1.0, 80.0])  # the best overlap is lying on its side
+    facing = np.array([90.0, 5.0, 0.0, 0.0])
+    assert select(overlaps, tilts, facing, cfg) == 1
+
+
+def test_first_hypothesis_is_top1_and_draws_stay_valid():
+    rng = np.random.default_rng(2)
+    valid = rng.random((30, 5)) > 0.3
+    valid[:, 1] = True
+    choice = draw_hypotheses(valid, 12, rng)
+    assert choice.shape == (12, 30)
+    assert np.all(valid[np.arange(30), choice[1:]])
+    np.testing.assert_array_equal(choice[0], valid.argmax(axis=1))
+
+
+@pytest.mark.parametrize("kind", sorted(OBJECT_KINDS))
+def test_surface_projection_lands_on_or_outside_every_primitive(kind):
+    primitives = object_geometry(kind, SIZES[kind]).primitives
+    rng = np.random.default_rng(4)
+    lo = np.min([np.asarray(p.pos) - 0.6 for p in primitives], axis=0)
+    hi = np.max([np.asarray(p.pos) + 0.6 for p in primitives], axis=0)
+    points = rng.uniform(lo, hi, size=(400, 3))
+    # Points deep inside each primitive too, the hard case.
+    points = np.vstack(
+        [points, *[np.asarray(p.pos) + rng.normal(0, 0.005, (20, 3)) for p in primitives]]
+    )
+    projected, normals = project_to_surface(points, primitives)
+    depth = np.stack([signed_distance(projected, p) for p in primitives])
+    assert depth.min() >= -1e-9
+    assert np.abs(depth.min(axis=0)).max() < 1e-9  # on the surface of some primitive
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-9)
+    outside = np.stack([signed_distance(points, p) for p in primitives]).min(axis=0) > 1e-3
+    gap = np.linalg.norm(projected - points, axis=1)
+    np.testing.assert_allclose(
+        gap[outside],
+        np.stack([signed_distance(points, p) for p in primitives]).min(axis=0)[outside],
+        atol=1e-9,
+    )
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    shape=st.sampled_from(["box", "cylinder", "sphere"]),
+    point=st.tuples(*[st.floats(-0.5, 0.5)] * 3),
+)
+def test_closest_point_on_a_primitive_is_on_its_surface(shape, point):
+    size = {"box": (0.2, 0.1, 0.15), "cylinder": (0.1, 0.2), "sphere": (0.12,)}[shape]
+    prim = Primitive(shape, size, (0.05, -0.02, 0.1), "p")
+    q, n = closest_on_primitive(np.array([point]), prim)
+    assert abs(signed_distance(q, prim)[0]) < 1e-9
+    assert np.linalg.norm(n) == pytest.approx(1.0)
+
+
+def test_feet_go_on_the_floor_or_the_top_never_on_a_side():
+    primitives = object_geometry("box", (0.4, 0.4, 0.2)).primitives
+    feet = np.array([[-0.5, 0.1, 0.03], [0.05, -0.1, 0.25], [-0.21, 0.0, 0.1]])
+    q, n = project_to_support(feet, primitives, floor_z=0.0)
+    np.testing.assert_allclose(q[0], [-0.5, 0.1, 0.0])
+    np.testing.assert_allclose(q[1], [0.05, -0.1, 0.2])
+    assert q[2, 2] in (0.0, 0.2)  # beside the box's face: floor or top, not the face
+    np.testing.assert_allclose(n, np.tile([0.0, 0.0, 1.0], (3, 1)))
+
+
+def test_anchor_undoes_the_heuristic_intrinsics_and_depth_scale():
+    rng = np.random.default_rng(5)
+    pose = rng.normal(0.0, 0.4, size=(21, 3)) + np.array([0.0, 0.0, 3.0])
+    k_xy, k_z = 1.3 * 1.05, 1.05  # focal ratio 1.3, depth scale 1.05
+    lifted = pose * np.array([k_xy, k_xy, k_z])
+    lifted[:4] *= 0.8  # four keypoints hidden behind something: nearer along their ray
+    anchor = fit_anchor(pose, lifted, np.ones(21, dtype=bool), quantile=0.9)
+    np.testing.assert_allclose(anchor.scale, [k_xy, k_xy, k_z], rtol=1e-9)
+    np.testing.assert_allclose(anchor(pose[4:]), lifted[4:], atol=1e-9)
+    with pytest.raises(ValueError, match="usable keypoints"):
+        fit_anchor(pose, lifted, np.arange(21) < 3, 0.9)
+
+
+def test_support_up_points_from_the_soles_to_the_pelvis():
+    soles = np.array([[0.0, 1.0, 3.0], [0.1, 1.0, 3.1], [0.2, 1.0, 3.0], [0.3, 1.0, 3.2]])
+    up = support_up(soles, np.array([0.1, 0.1, 3.0]))  # camera y points down
+    np.testing.assert_allclose(up, [0.0, -1.0, 0.0], atol=1e-12)
+    assert support_up(np.full((4, 3), np.nan), np.zeros(3)) is None
+
+
+def _striped(h: int = 64, w: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    rgb = np.zeros((h, w, 3), np.uint8)
+    rgb[:, :, 0] = (np.arange(w) * 4)[None, :]
+    rgb[::8] = 255
+    mask = np.zeros((h, w), bool)
+    mask[10:50, 12:52] = True
+    return rgb, mask
+
+
+def test_sift_pool_matches_an_image_to_itself():
+    rgb, mask = _striped()
+    describe = semantic.make_describer(PoolCfg())
+    px = semantic.mask_pixels(mask, np.ones_like(mask), 2)
+    desc = describe(rgb, mask, px)
+    np.testing.assert_allclose(np.linalg.norm(desc, axis=1), 1.0, atol=1e-6)
+    pool = semantic.score_pool(desc[::7], desc, px, px[::7], top_n=3)
+    assert pool.sim_px.shape == (len(px[::7]), 3, 2)
+    assert np.all(pool.scores[:, 0] >= pool.scores[:, 1])
+    np.testing.assert_array_equal(pool.sim_px[:, 0], px[::7])
+
+
+def test_a_mask_with_too_few_points_gets_a_clear_error():
+    mask = np.zeros((32, 32), bool)
+    mask[5, 5:7] = True
+    with pytest.raises(SceneError, match=r"subtask 3.*2 pixels with depth.*at least 3"):
+        semantic.sample_pixels(mask, np.ones_like(mask), 64, np.random.default_rng(0), "subtask 3")
+
+
+def test_learned_descriptor_loads_torchscript_and_fails_clearly(tmp_path):
+    torch = pytest.importorskip("torch")
+    with pytest.raises(ModelError, match="weights_file"):
+        semantic.LearnedDescriber(None)
+    with pytest.raises(ModelError, match="does not exist"):
+        semantic.LearnedDescriber(str(tmp_path / "missing.pt"))
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a model")
+    with pytest.raises(ModelError, match="not a TorchScript module"):
+        semantic.LearnedDescriber(str(junk))
+    torch.manual_seed(0)
+    backbone = torch.nn.Sequential(torch.nn.Conv2d(3, 8, 3, stride=2, padding=1), torch.nn.ReLU())
+    path = tmp_path / "backbone.pt"
+    torch.jit.save(torch.jit.trace(backbone, torch.rand(1, 3, 32, 32)), str(path))
+    describe = semantic.make_describer(PoolCfg(descriptor="learned", weights_file=str(path)))
+    rgb, mask = _striped()
+    desc = describe(rgb, mask, np.array([[20.0, 20.0], [40.0, 30.0]]))
+    assert desc.shape == (2, 8)
+    np.testing.assert_allclose(np.linalg.norm(desc, axis=1), 1.0, atol=1e-6)
+
+
+def test_contacts_config_rejects_bad_values():
+    from locoman.config.schema import walk_checks
+
+    bad = ContactsCfg(method="guess", lift="psychic")
+    bad.registration.scale_range = [2.0, 1.0]
+    bad.pool.top_n = 0
+    keys = {key for key, _ in walk_checks(bad)}
+    assert {"method", "lift", "registration.scale_range", "pool.points"} <= keys
