@@ -36,6 +36,15 @@ def _project(points_world: np.ndarray, inputs: SubtaskInputs, scale: float) -> n
     return px
 
 
+def _fit_tile(image: np.ndarray) -> tuple[np.ndarray, float]:
+    """The image scaled into a white TILE x TILE square, and the scale applied."""
+    h, w = image.shape[:2]
+    scale = TILE / max(h, w)
+    tile = cv2.resize(image, (round(w * scale), round(h * scale)))
+    pad = ((0, TILE - tile.shape[0]), (0, TILE - tile.shape[1]), (0, 0))
+    return np.pad(tile, pad, constant_values=255), scale
+
+
 def _inside(p: np.ndarray) -> bool:
     return bool(np.isfinite(p).all() and 0 <= p[0] < TILE and 0 <= p[1] < TILE)
 
@@ -44,18 +53,7 @@ def contact_plot(
     inputs: SubtaskInputs, result: Transfer, truth_world: np.ndarray | None, title: str
 ) -> np.ndarray:
     """The picture (H, W, 3) uint8 of a subtask."""
-    h, w = inputs.rgb.shape[:2]
-    g_scale = TILE / max(h, w)
-    left = cv2.resize(inputs.rgb, (round(w * g_scale), round(h * g_scale)))
-    left = cv2.copyMakeBorder(
-        left,
-        0,
-        TILE - left.shape[0],
-        0,
-        TILE - left.shape[1],
-        cv2.BORDER_CONSTANT,
-        value=(255, 255, 255),
-    )
+    left, g_scale = _fit_tile(inputs.rgb)
     for u, v in result.pool.gen_px * g_scale:
         cv2.circle(left, (int(u), int(v)), 2, POOL_RGB, -1)
     names = inputs.keypoint_names
@@ -72,18 +70,7 @@ def contact_plot(
                 OURS_RGB,
                 1,
             )
-    hs, ws = inputs.sim_rgb.shape[:2]
-    s_scale = TILE / max(hs, ws)
-    right = cv2.resize(inputs.sim_rgb, (round(ws * s_scale), round(hs * s_scale)))
-    right = cv2.copyMakeBorder(
-        right,
-        0,
-        TILE - right.shape[0],
-        0,
-        TILE - right.shape[1],
-        cv2.BORDER_CONSTANT,
-        value=(255, 255, 255),
-    )
+    right, s_scale = _fit_tile(inputs.sim_rgb)
     cloud = _project(apply(result.registration.transform, inputs.cloud[::3]), inputs, s_scale)
     for p in cloud:
         if _inside(p):
