@@ -174,12 +174,3 @@ def score_pool(
     n = min(top_n, scores.shape[1])
     top = np.argsort(-scores, axis=1, kind="stable")[:, :n]
     return ScorePool(gen_px, sim_px[top], np.take_along_axis(scores, top, axis=1))
-
-
-def best_match(
-    gen_desc: np.ndarray, sim_desc: np.ndarray, sim_px: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Top-1 pixel in R_s (P, 2) and its score (P,) for each described pixel of R_g."""
-    scores = gen_desc @ sim_desc.T
-    top = scores.argmax(axis=1)
-    return sim_px[top], scores[np.arange(len(top)), top]

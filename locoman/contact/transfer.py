@@ -224,7 +224,8 @@ def naive_contacts(
     object_px = np.column_stack([us, vs]).astype(float)
     nearest = np.linalg.norm(object_px[None] - px[:, None], axis=2).argmin(axis=1)
     gen_px = object_px[nearest]
-    matched, _ = semantic.best_match(describer(inputs.rgb, inputs.mask, gen_px), sim_desc, sim_px)
+    gen_desc = describer(inputs.rgb, inputs.mask, gen_px)
+    matched = semantic.score_pool(gen_desc, sim_desc, sim_px, gen_px, top_n=1).sim_px[:, 0]
     points, _ = lift_pixels(matched, inputs.sim_depth, inputs.sim_K)
     return camera.transform(points, inputs.T_world_sim)
 
