@@ -18,6 +18,7 @@ from locoman.contact.registration import (
     icp,
     level,
     overlap_scores,
+    refine_axes,
     select,
     tilt_errors,
     turn_about_object,
@@ -120,6 +121,28 @@ def test_icp_converges_from_a_perturbed_start():
     assert overlap_scores(source, surface, start[None], 0.02)[0] < 0.5
 
 
+def test_axis_refinement_recovers_a_stretched_variant():
+    rng = np.random.default_rng(3)
+    surface, pose = _box_surface(rng)
+    stretch = np.array([1.08, 0.93, 1.05])  # the variant's extents, relative to the object's
+    similarity = similarity_matrix(1.0, _rotation(5), np.array([0.2, -0.1, 0.4]))
+    # The variant's visible faces, seen from the gen frame's origin, in the gen frame.
+    variant = stretch[:, None] * np.eye(3)
+    T_stretch = pose @ np.block([[variant, np.zeros((3, 1))], [0, 0, 0, 1]]) @ np.linalg.inv(pose)
+    camera_world = apply(similarity, np.zeros((1, 3)))[0]
+    facing = (surface.normals * (camera_world - surface.points)).sum(axis=1) > 0.0
+    seen = apply(T_stretch, surface.points[facing][::2])
+    source = apply(np.linalg.inv(similarity), seen)
+    before = np.linalg.norm(apply(similarity, source) - surface.points[facing][::2], axis=1)
+    affine, factors = refine_axes(source, surface, similarity, 0.1, 40, 0.15, 0.0)
+    after = np.linalg.norm(apply(affine, source) - surface.points[facing][::2], axis=1)
+    np.testing.assert_allclose(factors, 1.0 / stretch, atol=0.02)
+    assert np.median(after) < 0.2 * np.median(before)
+    # A prior that outweighs the data keeps the similarity.
+    _, stiff = refine_axes(source, surface, similarity, 0.1, 40, 0.15, 100.0)
+    np.testing.assert_allclose(stiff, 1.0, atol=1e-3)
+
+
 def test_turns_and_levelling_keep_the_object_upright():
     rng = np.random.default_rng(1)
     _, pose = _box_surface(rng)
@@ -134,12 +157,16 @@ def test_turns_and_levelling_keep_the_object_upright():
     assert np.all(tilt_errors(turned[0], up_gen) < 1e-6)
 
 
-def test_selection_prefers_upright_then_facing_among_near_best():
-    cfg = RegistrationCfg(overlap_tolerance=0.05, max_tilt_deg=20.0)
-    overlaps = np.array([0.9, 0.88, 0.7, 0.95])
+def test_selection_takes_the_best_overlap_that_is_upright_and_faces_the_person():
+    cfg = RegistrationCfg(max_facing_deg=45.0, max_tilt_deg=20.0)
+    overlaps = np.array([0.9, 0.7, 0.8, 0.95])
     tilts = np.array([2.0, 3.0, 1.0, 80.0])  # the best overlap is lying on its side
-    facing = np.array([90.0, 5.0, 0.0, 0.0])
-    assert select(overlaps, tilts, facing, cfg) == 1
+    facing = np.array([90.0, 5.0, 30.0, 0.0])  # the next best turns its side to the person
+    assert select(overlaps, tilts, facing, cfg) == 2
+    # No facing known, or nobody passes a gate: that gate is dropped.
+    assert select(overlaps, tilts, np.full(4, np.nan), cfg) == 0
+    assert select(overlaps, tilts, np.full(4, 90.0), cfg) == 0
+    assert select(overlaps, np.full(4, 90.0), facing, cfg) == 3
 
 
 def test_first_hypothesis_is_top1_and_draws_stay_valid():
@@ -209,6 +236,7 @@ def test_anchor_undoes_the_heuristic_intrinsics_and_depth_scale():
     anchor = fit_anchor(pose, lifted, np.ones(21, dtype=bool), quantile=0.9)
     np.testing.assert_allclose(anchor.scale, [k_xy, k_xy, k_z], rtol=1e-9)
     np.testing.assert_allclose(anchor(pose[4:]), lifted[4:], atol=1e-9)
+    np.testing.assert_allclose(anchor.undo(anchor(pose)), pose, atol=1e-12)
     with pytest.raises(ValueError, match="usable keypoints"):
         fit_anchor(pose, lifted, np.arange(21) < 3, 0.9)
 

@@ -68,28 +68,37 @@ class RegistrationCfg:
             object's vertical axis (4: boxes and tables; 1: no turns).
         max_tilt_deg: Hypotheses that tilt the person's ground plane further than this from
             the horizontal are dropped (objects stand upright) [deg].
-        overlap_tolerance: Hypotheses within this overlap of the best compete on how well
-            they face the person towards the object's approach side [-].
+        max_facing_deg: Hypotheses that turn the object's approach side (+x) further than
+            this from the person's facing are dropped; the object is symmetric, the person's
+            facing is not [deg].
         model_points: Samples of the simulated object's surface [-].
         icp_points: The R_g cloud is thinned to this many points for ICP [-].
         icp_iterations: ICP iterations per hypothesis.
         icp_distance: ICP pairs longer than this fraction of the object's size are dropped.
         overlap_distance: A point overlaps the other cloud within this fraction of the
             object's size [-].
+        stretch_iterations: ICP iterations with a scale per object axis after the winner is
+            chosen (0: keep the similarity) [-].
+        max_stretch: Each axis' factor stays within 1 +- this [-].
+        stretch_prior_m: Pulls each factor towards 1 like a spread of this many metres seen
+            at scale 1, so a barely seen axis keeps the similarity's scale [m].
     """
 
     iterations: int = 10
     transform: str = "similarity"
-    scale_range: list[float] = field(default_factory=lambda: [0.6, 1.6])
+    scale_range: list[float] = field(default_factory=lambda: [0.8, 1.25])
     trim_rounds: int = 2
     symmetry_turns: int = 4
     max_tilt_deg: float = 20.0
-    overlap_tolerance: float = 0.05
+    max_facing_deg: float = 45.0
     model_points: int = 3000
     icp_points: int = 600
     icp_iterations: int = 30
     icp_distance: float = 0.15
     overlap_distance: float = 0.03
+    stretch_iterations: int = 20
+    max_stretch: float = 0.15
+    stretch_prior_m: float = 0.02
 
     def check(self) -> list[tuple[str, str]]:
         errors = _choice("transform", self.transform, TRANSFORMS)
@@ -98,10 +107,14 @@ class RegistrationCfg:
             errors.append(("iterations", "needs iterations, icp_iterations >= 1, trims >= 0"))
         if not 0.0 < self.max_tilt_deg <= 180.0:
             errors.append(("max_tilt_deg", f"must be in (0, 180], got {self.max_tilt_deg}"))
-        if self.symmetry_turns < 1 or not 0.0 <= self.overlap_tolerance <= 1.0:
-            errors.append(("symmetry_turns", "needs turns >= 1 and a tolerance in [0, 1]"))
+        if self.symmetry_turns < 1 or not 0.0 < self.max_facing_deg <= 180.0:
+            errors.append(("symmetry_turns", "needs turns >= 1 and max_facing_deg in (0, 180]"))
         if not (0.0 < self.icp_distance <= 2.0 and 0.0 < self.overlap_distance <= 1.0):
             errors.append(("icp_distance", "distances are fractions of the object size > 0"))
+        if self.stretch_iterations < 0 or not 0.0 <= self.max_stretch < 1.0:
+            errors.append(("max_stretch", "needs stretch_iterations >= 0, max_stretch in [0, 1)"))
+        if self.stretch_prior_m < 0.0:
+            errors.append(("stretch_prior_m", "must be >= 0"))
         if self.model_points < 100 or self.icp_points < 10:
             errors.append(("model_points", "needs model_points >= 100 and icp_points >= 10"))
         return errors

@@ -40,6 +40,10 @@ class Anchor:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return np.asarray(points) * self.scale + self.offset
 
+    def undo(self, points: np.ndarray) -> np.ndarray:
+        """Points of the lifted cloud's frame (N, 3) back in the metric camera frame [m]."""
+        return (np.asarray(points) - self.offset) / self.scale
+
 
 def fit_anchor(pose: np.ndarray, lifted: np.ndarray, usable: np.ndarray, quantile: float) -> Anchor:
     """Fit the anchor model from pose keypoints (K, 3) to lifted keypoints (K, 3) [m].

@@ -71,7 +71,9 @@ def contact_plot(
                 1,
             )
     right, s_scale = _fit_tile(inputs.sim_rgb)
-    cloud = _project(apply(result.registration.transform, inputs.cloud[::3]), inputs, s_scale)
+    cloud = _project(
+        apply(result.registration.affine, result.anchor.undo(inputs.cloud[::3])), inputs, s_scale
+    )
     for p in cloud:
         if _inside(p):
             right[int(p[1]), int(p[0])] = CLOUD_RGB

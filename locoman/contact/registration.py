@@ -15,10 +15,16 @@ What this implementation adds, and why:
   point facing the current camera estimate with its nearest source point, so a fit cannot
   shrink the cloud onto a patch of the target to raise its overlap; the scale is estimated
   (Umeyama) and clamped to a range. The overlap score is the F-score of both directions.
+- **Per-axis stretch.** The object in R_g is a variant: a stretched copy of the simulated
+  one (each extent scaled on its own), which no similarity absorbs. After the winner is
+  chosen, ICP goes on with a scale per object axis and a small rotation, y = D R x + b in the
+  object frame, with each factor of D pulled towards 1 by a prior so that an axis the view
+  barely sees keeps the similarity's scale.
 - **Symmetric poses.** Boxes and tables look the same turned about their vertical axis, so
-  every hypothesis is also tried turned by 360/turns degrees. Among hypotheses whose overlap
-  is within a tolerance of the best, the winner is the one that puts the person facing the
-  object's approach side (+x in the object frame), which is how every scene is built.
+  every hypothesis is also tried turned by 360/turns degrees. The winner has the best
+  overlap among the hypotheses that stand the object upright on the person's ground plane
+  and put the person facing the object's approach side (+x in the object frame), which is
+  how every scene is built: the overlap cannot tell symmetric poses apart, the person can.
 
 All hypotheses are drawn, solved by SVD and refined by ICP at once (batched over the leading
 axis, with one KD-tree per cloud).
@@ -59,6 +65,8 @@ class Registration:
 
     Attributes:
         transform: (4, 4) similarity from R_g's camera frame to the scene world [m].
+        affine: (4, 4) ``transform`` followed by the per-axis stretch: where contacts go.
+        stretch: (3,) factors of the stretch along the object's axes [-].
         overlap: F-score of the overlap, in [0, 1].
         iteration: 1-based sampling iteration whose SVD started the winner.
         turn: Turns (of 360/turns degrees) about the object's axis applied to that start.
@@ -70,6 +78,8 @@ class Registration:
     """
 
     transform: np.ndarray
+    affine: np.ndarray
+    stretch: np.ndarray
     overlap: float
     iteration: int
     turn: int
@@ -192,6 +202,74 @@ def icp(
     return transforms
 
 
+def _pairs(
+    source: np.ndarray,
+    surface: Surface,
+    target_tree: cKDTree,
+    matrix: np.ndarray,
+    max_distance: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The view-aware ICP pairs of one affine map (4, 4): sources (P, 3), targets (P, 3) and
+    weights (P,)."""
+    moved = apply(matrix, source)
+    dist, idx = target_tree.query(moved, workers=-1)
+    camera = matrix[:3, 3]
+    facing = np.einsum("mk,mk->m", camera - surface.points, surface.normals) > 0.0
+    gap, jdx = cKDTree(moved).query(surface.points, workers=-1)
+    src = np.concatenate([source, source[jdx]])
+    dst = np.concatenate([surface.points[idx], surface.points])
+    weights = np.concatenate([dist <= max_distance, facing & (gap <= max_distance)])
+    return src, dst, weights.astype(float)
+
+
+def refine_axes(
+    source: np.ndarray,
+    surface: Surface,
+    transform: np.ndarray,
+    max_distance: float,
+    iterations: int,
+    max_stretch: float,
+    prior_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """ICP with a scale per object axis after the similarity ``transform`` (4, 4).
+
+    In the object frame, with x the source mapped by ``transform``, each step fits
+    y = D R x + b to the view-aware pairs: R by Kabsch on x against D^-1 y, then each factor
+    d_k = (sum w u_k v_k + lam) / (sum w u_k^2 + lam) of centred u = R x, v = y, where
+    lam = sum(w) prior_m^2 acts like a spread of ``prior_m`` [m] seen at scale 1, and
+    |d_k - 1| <= ``max_stretch``.
+
+    Returns:
+        The affine map (4, 4) from R_g's camera frame to the world, and D's factors (3,).
+    """
+    T_wo = surface.T_world_object
+    T_ow = np.linalg.inv(T_wo)
+    local = Surface(apply(T_ow, surface.points), surface.normals @ T_wo[:3, :3], np.eye(4))
+    tree = cKDTree(local.points)
+    start = T_ow @ transform
+    refine = np.eye(4)
+    factors = np.ones(3)
+    for _ in range(iterations):
+        src, dst, w = _pairs(source, local, tree, refine @ start, max_distance)
+        if w.sum() < 3:
+            break
+        x = apply(start, src)
+        wn = w / w.sum()
+        x_c = x - wn @ x
+        y_c = dst - wn @ dst
+        _, rot, _ = umeyama(x_c, y_c / factors, w)
+        u = x_c @ rot.T
+        lam = w.sum() * prior_m**2
+        factors = (np.einsum("n,nk,nk->k", w, u, y_c) + lam) / (
+            np.einsum("n,nk,nk->k", w, u, u) + lam
+        )
+        factors = np.clip(factors, 1.0 - max_stretch, 1.0 + max_stretch)
+        refine = np.eye(4)
+        refine[:3, :3] = factors[:, None] * rot
+        refine[:3, 3] = wn @ dst - refine[:3, :3] @ (wn @ x)
+    return T_wo @ refine @ start, factors
+
+
 def overlap_scores(
     source: np.ndarray, surface: Surface, transforms: np.ndarray, distance: float
 ) -> np.ndarray:
@@ -269,17 +347,17 @@ def facing_errors(
 def select(
     overlaps: np.ndarray, tilts: np.ndarray, facing: np.ndarray, cfg: RegistrationCfg
 ) -> int:
-    """Index of the winner: among hypotheses that keep the object upright (tilt within
-    ``max_tilt_deg``; all of them if none does), those within ``overlap_tolerance`` of the
-    best overlap, and of these the one that best faces the person to the approach side."""
-    upright = tilts <= cfg.max_tilt_deg
-    if not upright.any():
-        upright = np.ones_like(upright)
-    best = overlaps[upright].max()
-    close = upright & (overlaps >= best - cfg.overlap_tolerance)
-    if np.isnan(facing[close]).all():
-        return int(np.argmax(np.where(close, overlaps, -np.inf)))
-    return int(np.nanargmin(np.where(close, facing, np.inf)))
+    """Index of the winner: the best overlap among hypotheses that keep the object upright
+    (tilt within ``max_tilt_deg``) and face the person to the approach side (facing error
+    within ``max_facing_deg``; NaN, when the facing is unknown, passes). Each gate is
+    dropped when no hypothesis passes it."""
+    keep = tilts <= cfg.max_tilt_deg
+    if not keep.any():
+        keep = np.ones_like(keep)
+    facing_ok = keep & ~(facing > cfg.max_facing_deg)
+    if facing_ok.any():
+        keep = facing_ok
+    return int(np.argmax(np.where(keep, overlaps, -np.inf)))
 
 
 def register(
@@ -343,8 +421,19 @@ def register(
     best = select(overlaps, tilts, facing, cfg)
     shape = turned.shape[:2]
     iteration, turn = np.unravel_index(best, shape)
+    affine, stretch = refine_axes(
+        source,
+        surface,
+        flat[best],
+        cfg.icp_distance * size,
+        cfg.stretch_iterations,
+        cfg.max_stretch,
+        cfg.stretch_prior_m,
+    )
     return Registration(
         transform=flat[best],
+        affine=affine,
+        stretch=stretch,
         overlap=float(overlaps[best]),
         iteration=int(iteration) + 1,
         turn=int(turn),

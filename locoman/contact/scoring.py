@@ -42,18 +42,15 @@ def score_subtask(
     reg = result.registration
     _, rot, _ = decompose_similarity(reg.transform)
     rotation_error = rotation_angle_deg(rot, T_true[:3, :3])
-    # Where the lifted cloud has the variant's centre: its true pixel, at the estimated depth.
+    # The registration maps R_g's metric camera frame, which the 3D pose estimate defines
+    # and the true camera frame is (up to the estimate's noise): the variant's centre there.
     centre_local = np.array([0.0, 0.0, 0.5 * float(truth["variant_size_m"][-1])])
     centre_cam = camera.to_camera(
         camera.transform(centre_local[None], T_genworld_variant), truth["T_world_cam"]
     )
-    both = (truth["depth_m"] > 0) & (inputs.depth > 0) & inputs.mask
-    depth_scale = float(np.median(inputs.depth[both] / truth["depth_m"][both]))
-    pixel = camera.project(centre_cam, truth["K"]) - 0.5
-    centre_gen = camera.pixel_rays(pixel, inputs.K) * centre_cam[:, 2:] * depth_scale
     scene_centre_local = np.array([0.0, 0.0, 0.5 * float(truth["object_size_m"][-1])])
     scene_centre = camera.transform(scene_centre_local[None], inputs.T_world_object)
-    translation_error = float(np.linalg.norm(apply(reg.transform, centre_gen) - scene_centre))
+    translation_error = float(np.linalg.norm(apply(reg.transform, centre_cam) - scene_centre))
     # Placement: the true pelvis relative to the variant, moved with the approach face.
     q = truth["human_qpos"]
     T_genworld_pelvis = np.eye(4)

@@ -25,7 +25,7 @@ import numpy as np
 from locoman.config.contacts import ContactsCfg
 from locoman.contact import semantic
 from locoman.contact.kabsch import apply, decompose_similarity
-from locoman.contact.lift import SOLE_KEYPOINTS, fit_anchor, support_up
+from locoman.contact.lift import SOLE_KEYPOINTS, Anchor, fit_anchor, support_up
 from locoman.contact.registration import Person, Registration, Surface, register
 from locoman.contact.surface import project_to_support, project_to_surface, sample_surface
 from locoman.errors import SceneError
@@ -94,7 +94,8 @@ class Transfer:
         registration: The best hypothesis (it also places the human for ``naive``).
         T_world_pelvis: The human's pelvis placed in the scene.
         pool: The semantic score pool.
-        lifted_gen: (C, 3) hands and feet in the gen frame [m].
+        lifted: (C, 3) hands and feet in R_g's metric camera frame [m].
+        anchor: Maps R_g's metric camera frame to its lifted cloud's frame.
     """
 
     points_world: np.ndarray
@@ -105,7 +106,8 @@ class Transfer:
     registration: Registration
     T_world_pelvis: np.ndarray
     pool: semantic.ScorePool
-    lifted_gen: np.ndarray
+    lifted: np.ndarray
+    anchor: Anchor
 
 
 def lift_pixels(px: np.ndarray, depth: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -140,13 +142,14 @@ def build_pool(
 
 def lift_effectors(
     inputs: SubtaskInputs, cfg: ContactsCfg
-) -> tuple[np.ndarray, np.ndarray, Person]:
-    """Hands and feet of the plan (C, 3), the pelvis (3,) in the gen frame [m], and the
-    person's up and facing directions there.
+) -> tuple[np.ndarray, np.ndarray, Person, Anchor]:
+    """Hands and feet of the plan (C, 3) and the pelvis (3,) in R_g's metric camera frame
+    [m], the person's up and facing directions there, and the anchor between that frame and
+    the frame of R_g's lifted cloud.
 
     Raises:
-        SceneError: When a contact keypoint has no depth (``lift = depth``), or too few
-            keypoints anchor the pose (``lift = pose``).
+        SceneError: When too few keypoints anchor the pose, or a contact keypoint has no
+            depth (``lift = depth``).
     """
     names = inputs.keypoint_names
     idx = [names.index(e) for e in inputs.effectors]
@@ -165,22 +168,20 @@ def lift_effectors(
             f"{inputs.where}: cannot anchor the 3D pose to the depth ({err}); check the "
             "keypoints and the depth of the generated image"
         ) from None
-    pelvis = anchor(inputs.T_cam_pelvis[:3, 3])
-    soles = anchor(inputs.pose_keypoints[[names.index(n) for n in SOLE_KEYPOINTS]])
-    # Directions through the anchor's scaling: a normal maps by its inverse, a vector by it.
-    up = support_up(soles, pelvis)
-    facing = anchor.scale * (inputs.T_cam_pelvis[:3, :3] @ LOCAL_FORWARD)
-    person = Person(up, facing / np.linalg.norm(facing))
+    pelvis = inputs.T_cam_pelvis[:3, 3]
+    up = support_up(inputs.pose_keypoints[[names.index(n) for n in SOLE_KEYPOINTS]], pelvis)
     if cfg.lift == "pose":
-        return anchor(inputs.pose_keypoints[idx]), pelvis, person
-    lifted = inputs.keypoints_lifted[idx]
-    missing = [e for e, p in zip(inputs.effectors, lifted, strict=True) if not np.isfinite(p).all()]
-    if missing:
-        raise SceneError(
-            f"{inputs.where}: no depth under the keypoints of {missing}; use "
-            "contacts.lift = pose, which places them from the 3D pose"
-        )
-    return lifted, pelvis, person
+        lifted = inputs.pose_keypoints[idx]
+    else:
+        lifted = anchor.undo(inputs.keypoints_lifted[idx])
+        missing = [e for e, p in zip(inputs.effectors, lifted, strict=True) if np.isnan(p).any()]
+        if missing:
+            raise SceneError(
+                f"{inputs.where}: no depth under the keypoints of {missing}; use "
+                "contacts.lift = pose, which places them from the 3D pose"
+            )
+    person = Person(up, inputs.T_cam_pelvis[:3, :3] @ LOCAL_FORWARD)
+    return lifted, pelvis, person, anchor
 
 
 def project_contacts(
@@ -247,16 +248,16 @@ def transfer_subtask(
     pool, sim_px, sim_desc = build_pool(
         inputs, describer, cfg.pool.points, cfg.pool.top_n, cfg.pool.grid_px, rng
     )
-    lifted_gen, pelvis_gen, person = lift_effectors(inputs, cfg)
-    naive = naive_contacts(inputs, describer, sim_px, sim_desc, lifted_gen)
+    lifted, pelvis, person, anchor = lift_effectors(inputs, cfg)
+    naive = naive_contacts(inputs, describer, sim_px, sim_desc, anchor(lifted))
     src, _ = lift_pixels(pool.gen_px, inputs.depth, inputs.K)
     s, n = pool.sim_px.shape[:2]
     dst_cam, valid = lift_pixels(pool.sim_px.reshape(-1, 2), inputs.sim_depth, inputs.sim_K)
     dst = camera.transform(dst_cam, inputs.T_world_sim).reshape(s, n, 3)
     reg = register(
-        inputs.cloud,
+        anchor.undo(inputs.cloud),
         object_surface(inputs, cfg.registration.model_points, rng),
-        src,
+        anchor.undo(src),
         dst,
         valid.reshape(s, n),
         person,
@@ -268,14 +269,16 @@ def transfer_subtask(
     _, rot, _ = decompose_similarity(T)
     T_world_pelvis = np.eye(4)
     T_world_pelvis[:3, :3] = rot @ inputs.T_cam_pelvis[:3, :3]
-    T_world_pelvis[:3, 3] = apply(T, pelvis_gen[None])[0]
+    T_world_pelvis[:3, 3] = apply(T, pelvis[None])[0]
     if cfg.method == "naive":
         raw = naive
         points, normals, surfaces = naive, _naive_normals(naive, inputs), ["object"] * len(naive)
     else:
-        raw = apply(T, lifted_gen)
+        raw = apply(reg.affine, lifted)
         points, normals, surfaces = project_contacts(raw, inputs.effectors, inputs)
-    return Transfer(points, normals, surfaces, raw, naive, reg, T_world_pelvis, pool, lifted_gen)
+    return Transfer(
+        points, normals, surfaces, raw, naive, reg, T_world_pelvis, pool, lifted, anchor
+    )
 
 
 def _naive_normals(points: np.ndarray, inputs: SubtaskInputs) -> np.ndarray:
