@@ -139,7 +139,8 @@ def rendered(params):
     scene = build_scene("tiny", params.scenarios["tiny"])
     sub = scene.plan["subtasks"][1]
     obj = scene.objects[sub["object"]]
-    return render_subtask(obj, sub, params.perception.generate, np.random.default_rng(3))
+    height = obj["pos_m"][2]
+    return render_subtask(obj, sub, height, params.perception.generate, np.random.default_rng(3))
 
 
 def test_rendered_depth_lifts_onto_the_variants_surface(rendered):

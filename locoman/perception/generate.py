@@ -23,7 +23,7 @@ from locoman.perception.io import (
 )
 from locoman.perception.prompts import augment_prompt
 from locoman.perception.render_backend import object_patches, render_subtask
-from locoman.perception.sim_view import render_sim_view
+from locoman.perception.sim_view import object_pose, render_sim_view
 from locoman.scene.io import load_objects, load_plan
 from locoman.scene.objects import ContactPatch
 
@@ -51,7 +51,8 @@ def generate_scenario(
         t0 = time.perf_counter()
         prompt = augment_prompt(sub["prompt"])
         folder = subtask_dir(out_dir, i)
-        sim = render_sim_view(scene_dir, name, objects[name], cfg.sim_view)
+        T_obj = object_pose(scene_dir, name, plan["subtasks"], i)
+        sim = render_sim_view(scene_dir, name, objects[name], T_obj, cfg.sim_view)
         write_png(folder / "sim_rgb.png", sim.rgb)
         write_npz(
             folder / "sim_view.npz",
@@ -67,7 +68,9 @@ def generate_scenario(
         if generator is not None:
             write_png(folder / "image.png", flux.generate_image(generator, prompt, cfg, seed + i))
         else:
-            rendered = render_subtask(objects[name], sub, cfg, subtask_rng(seed, scenario, i))
+            rendered = render_subtask(
+                objects[name], sub, float(T_obj[2, 3]), cfg, subtask_rng(seed, scenario, i)
+            )
             write_png(folder / "image.png", rendered.rgb)
             truth = dict(rendered.truth)
             patches = object_patches(objects[name])

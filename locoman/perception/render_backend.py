@@ -81,19 +81,15 @@ def sample_variant(obj: dict[str, Any], cfg: VariantCfg, rng: np.random.Generato
     )
 
 
-def subtask_height(obj: dict[str, Any], subtask: dict[str, Any]) -> float:
-    """Height [m] of the object's origin during the subtask (its target's when it moves)."""
-    target = subtask.get("target")
-    return float(target["pos_m"][2] if target else obj["pos_m"][2])
-
-
 def render_subtask(
     obj: dict[str, Any],
     subtask: dict[str, Any],
+    height: float,
     cfg: GenerateCfg,
     rng: np.random.Generator,
 ) -> RenderedSubtask:
-    """Pose the demonstrator for ``subtask`` against a variant of ``obj`` and render it.
+    """Pose the demonstrator for ``subtask`` against a variant of ``obj`` standing at
+    ``height`` [m] (where the object is during the subtask), and render it.
 
     Raises:
         SceneError: When the demonstrator cannot reach the contacts or the object ends up
@@ -101,7 +97,7 @@ def render_subtask(
     """
     where = f"subtask {subtask['index']} ({subtask['prompt']!r}, object {subtask['object']!r})"
     variant = sample_variant(obj, cfg.variant, rng)
-    z0 = subtask_height(obj, subtask)
+    z0 = height
     geometry = object_geometry(variant.kind, variant.size)
     targets = demonstrator.contact_targets(
         variant.kind, geometry.patches, subtask["contacts"], variant.size, cfg.step_height_max_m

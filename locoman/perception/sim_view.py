@@ -24,6 +24,7 @@ from locoman.perception.render_backend import (
 )
 from locoman.scene import g1
 from locoman.scene.io import MJCF_FILE, load_state
+from locoman.scene.rotations import quat_wxyz_to_matrix, yaw_quat_wxyz
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,8 +48,21 @@ class SimView:
     object_mask: np.ndarray
 
 
-def object_pose(scene_dir: Path, name: str) -> np.ndarray:
-    """World pose (4, 4) of the object ``name`` in the scene's initial state."""
+def object_pose(
+    scene_dir: Path, name: str, subtasks: list[dict[str, Any]], index: int
+) -> np.ndarray:
+    """World pose (4, 4) of the object ``name`` during subtask ``index`` of the plan.
+
+    It starts where the scene's initial state has it; every subtask up to ``index`` with a
+    target for it moves it there. A subtask's own target counts: its keyframe is where it
+    ends (the box placed).
+    """
+    for sub in sorted(subtasks, key=lambda s: -int(s["index"])):
+        if sub["index"] <= index and sub["object"] == name and sub.get("target"):
+            pose = np.eye(4)
+            pose[:3, :3] = quat_wxyz_to_matrix(yaw_quat_wxyz(float(sub["target"]["yaw_rad"])))
+            pose[:3, 3] = sub["target"]["pos_m"]
+            return pose
     state = load_state(scene_dir)
     names = list(state["body_names"])
     if name not in names:
@@ -60,6 +74,20 @@ def object_pose(scene_dir: Path, name: str) -> np.ndarray:
     pose[:3, :3] = mat.reshape(3, 3)
     pose[:3, 3] = state["body_pos"][i]
     return pose
+
+
+def _place(model: mujoco.MjModel, data: mujoco.MjData, name: str, pose: np.ndarray) -> None:
+    """Put a movable object at ``pose``; a fixed one must already be there."""
+    joint = f"{name}_free"
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint) < 0:
+        mujoco.mj_forward(model, data)
+        if np.abs(data.body(name).xpos - pose[:3, 3]).max() > 1e-6:
+            raise SceneError(f"object {name!r} is fixed in the scene; the plan cannot move it")
+        return
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, pose[:3, :3].ravel())
+    adr = model.joint(joint).qposadr[0]
+    data.qpos[adr : adr + 7] = np.r_[pose[:3, 3], quat]
 
 
 def bounding_sphere(obj: dict[str, Any]) -> tuple[np.ndarray, float]:
@@ -75,18 +103,17 @@ def bounding_sphere(obj: dict[str, Any]) -> tuple[np.ndarray, float]:
 
 
 def render_sim_view(
-    scene_dir: str | Path, name: str, obj: dict[str, Any], cfg: SimViewCfg
+    scene_dir: str | Path, name: str, obj: dict[str, Any], T_obj: np.ndarray, cfg: SimViewCfg
 ) -> SimView:
-    """Render R_s, D_s of object ``name`` from the scene stage's MJCF.
+    """Render R_s, D_s of object ``name``, at pose ``T_obj`` (4, 4), in the scene stage's MJCF.
 
     Raises:
-        SceneError: When the object is hidden or out of view.
+        SceneError: When the object is hidden or out of view, or must move and cannot.
     """
     scene_dir = Path(scene_dir)
     path = scene_dir / MJCF_FILE
     if not path.is_file():
         raise ArtifactError(f"scene MJCF {path} is missing (rerun `dvc repro scene`)")
-    T_obj = object_pose(scene_dir, name)
     centre_obj, radius = bounding_sphere(obj)
     target = camera.transform(centre_obj[None], T_obj)[0]
     az, el = np.deg2rad(cfg.azimuth_deg), np.deg2rad(cfg.elevation_deg)
@@ -108,6 +135,7 @@ def render_sim_view(
     model = spec.compile()
     data = mujoco.MjData(model)
     data.qpos[:] = model.key("home").qpos
+    _place(model, data, name, T_obj)
     mujoco.mj_forward(model, data)
     option = mujoco.MjvOption()
     option.geomgroup[:] = 1
