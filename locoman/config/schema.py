@@ -13,6 +13,7 @@ from omegaconf import MISSING
 
 from locoman.config.contacts import ContactsCfg
 from locoman.config.perception import PerceptionCfg
+from locoman.config.retarget import RetargetCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
 
 
@@ -204,6 +205,7 @@ class RootCfg:
     hqp: HqpCfg = field(default_factory=HqpCfg)
     perception: PerceptionCfg = field(default_factory=PerceptionCfg)
     contacts: ContactsCfg = field(default_factory=ContactsCfg)
+    retarget: RetargetCfg = field(default_factory=RetargetCfg)
 
     def check(self) -> list[tuple[str, str]]:
         errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]

@@ -7,8 +7,10 @@ Layout under ``data/<scenario>/contacts/``::
     metrics.json                contact errors of both methods against ground truth
 
 Frames: ``world`` is the scene's world; ``object`` is the subtask's object frame (origin at
-the centre of its bottom face, x forward, z up); ``gen`` is R_g's camera frame as lifted by
-the clouds stage (heuristic intrinsics, estimated depth). ``T_a_b`` maps frame b into a.
+the centre of its bottom face, x forward, z up); ``gen`` is R_g's metric camera frame, the
+frame of the 3D pose estimate (the clouds stage's lifted cloud, with its heuristic
+intrinsics and estimated depth, is mapped into it by the pose anchor). ``T_a_b`` maps frame
+b into a.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ CONTACTS = ArtifactSchema(
         Field("normals_world", "float64", ("C", 3), "-", "outward surface normals at L"),
         Field("raw_points_world_m", "float64", ("C", 3), "m", "L before surface projection"),
         Field("T_world_object", "float64", (4, 4), "m", "the object's pose in the scene"),
-        Field("T_world_gen", "float64", (4, 4), "m", "registration: R_g cloud -> world (scaled)"),
+        Field("T_world_gen", "float64", (4, 4), "m", "registration: gen -> world (similarity)"),
         Field("scale", "float64", (), "-", "scale of T_world_gen"),
         Field("overlap", "float64", (), "-", "overlap score of the best hypothesis"),
         Field("iteration", "int64", (), "-", "1-based hypothesis that won"),

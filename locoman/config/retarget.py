@@ -1,0 +1,82 @@
+"""Typed configuration of retargeting (paper A, Sec. III-A.3).
+
+Section ``retarget``: the weights of the placo IK tasks, and the
+margins of its hard constraints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class RetargetCfg:
+    """Stage ``retarget``: one G1 keyframe (35-D) per subtask.
+
+    Attributes:
+        hand_weight: Hand contact position tasks (soft, high weight) [-].
+        unreachable_weight: A hand contact missed by more than ``reach_tolerance_m`` is
+            solved again with this weight, so it leans towards the contact without dragging
+            the body along [-].
+        base_weight: Base orientation of the human placement [-].
+        posture_weight: Mapped human joint angles; low, so they only guide [-].
+        regularization: placo's damping of each step [-].
+        foot_weight: Sole positions at the foot contacts or stances; the heaviest task, as
+            near to hard as a QP whose steps are bounded allows [-].
+        foot_flat_weight: Feet flat, turned like the base [-].
+        stance_weight: A standing foot's pull, in the plane, towards the human's stance [-].
+        com_weight: The CoM inside the support polygon, by ``com_margin_m`` (soft: a hard
+            polygon can make the QP infeasible while a hand reaches) [-].
+        com_margin_m: [m].
+        collision_weight: Self-collision shapes at least ``collision_margin_m`` apart (soft,
+            for the same reason) [-].
+        collision_margin_m: [m].
+        collision_trigger_m: Pairs closer than this enter the QP [m].
+        reach_tolerance_m: A contact missed by more is reported as unreachable [m].
+        iterations: Most IK steps per keyframe.
+        step_s: Each step moves every joint by at most its velocity limit times this, so
+            a far target is approached, not jumped at [s].
+        tolerance: Stop when a step moves q by less than this [-].
+    """
+
+    hand_weight: float = 1e3
+    foot_weight: float = 1e5
+    foot_flat_weight: float = 1e4
+    stance_weight: float = 10.0
+    com_weight: float = 1e3
+    collision_weight: float = 1e4
+    unreachable_weight: float = 1.0
+    base_weight: float = 10.0
+    posture_weight: float = 1e-2
+    regularization: float = 1e-3
+    com_margin_m: float = 0.02
+    collision_margin_m: float = 0.005
+    collision_trigger_m: float = 0.03
+    reach_tolerance_m: float = 0.005
+    iterations: int = 500
+    step_s: float = 0.05
+    tolerance: float = 1e-4
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        weights = (
+            self.hand_weight,
+            self.unreachable_weight,
+            self.foot_weight,
+            self.foot_flat_weight,
+            self.stance_weight,
+            self.com_weight,
+            self.collision_weight,
+            self.base_weight,
+            self.posture_weight,
+            self.regularization,
+        )
+        if min(weights) < 0.0:
+            errors.append(("hand_weight", "task weights and the regularization must be >= 0"))
+        if min(self.com_margin_m, self.collision_margin_m, self.reach_tolerance_m) < 0.0:
+            errors.append(("com_margin_m", "margins and tolerances must be >= 0 m"))
+        if self.collision_trigger_m <= self.collision_margin_m:
+            errors.append(("collision_trigger_m", "must exceed collision_margin_m"))
+        if self.iterations < 1 or self.tolerance <= 0.0:
+            errors.append(("iterations", "needs iterations >= 1 and tolerance > 0"))
+        return errors

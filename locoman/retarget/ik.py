@@ -1,0 +1,317 @@
+"""Whole-body IK with placo: one G1 keyframe per subtask (paper A, Sec. III-A.3).
+
+The paper's IK places the hands and feet on the transferred contacts, keeps the feet flat,
+and is guided by the human's joint angles. Here, per keyframe (weights in
+:class:`~locoman.config.retarget.RetargetCfg`):
+
+- hands: position tasks of the palm centres at the hand contacts, moved out along the
+  surface normal by the palm's radius so the hand rests on the surface;
+- feet in contact: frame tasks of the sole centres at the foot contacts, flat and turned like
+  the base; standing feet: flat on their support, with a low-weight pull in the plane
+  towards the stance :mod:`.problem` derives from the human, so the robot may step closer;
+- the base orientation of the human placement, soft;
+- the mapped human joint angles, a low-weight posture task, so they only guide;
+- joint limits, self-collision avoidance (placo's constraint on the pure-shape model of
+  :mod:`.robot`, margin ``collision_margin_m``) and the CoM over the support polygon (a
+  hard constraint with margin ``com_margin_m``), all hard.
+
+Every contact task is soft with a high weight, so an unreachable contact cannot make the QP
+infeasible: the solve goes on, and the miss is reported with its distance.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import dataclasses
+import os
+import sys
+from collections.abc import Iterator, Sequence
+
+import numpy as np
+import placo
+
+from locoman.config.retarget import RetargetCfg
+from locoman.errors import SolverError
+from locoman.retarget.robot import PALM_FRAMES, SOLE_FRAMES, contact_frames, placo_robot
+from locoman.scene import g1
+
+BASE_FRAME = "pelvis"
+
+
+@dataclasses.dataclass(frozen=True)
+class ContactTarget:
+    """One end effector's target.
+
+    Attributes:
+        effector: ``left_hand``, ``right_hand``, ``left_foot`` or ``right_foot``.
+        point: Contact location on the surface, world [m].
+        normal: Outward surface normal there.
+        in_contact: Whether the plan puts this end effector in contact (False: a foot that
+            only stands).
+    """
+
+    effector: str
+    point: np.ndarray
+    normal: np.ndarray
+    in_contact: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class IKProblem:
+    """What one keyframe must satisfy.
+
+    Attributes:
+        hands: Hand contacts.
+        feet: Foot contacts (``in_contact``) and the standing feet.
+        R_world_base: Base orientation of the human placement.
+        posture: Mapped human joint angles (29,) [rad].
+        q_start: Pinocchio configuration (36,) the solve starts from.
+    """
+
+    hands: tuple[ContactTarget, ...]
+    feet: tuple[ContactTarget, ...]
+    R_world_base: np.ndarray
+    posture: np.ndarray
+    q_start: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class IKResult:
+    """A solved keyframe.
+
+    Attributes:
+        q: Pinocchio configuration (36,).
+        q35: Keyframe configuration (35,): base position [m], roll-pitch-yaw [rad], joints.
+        effectors: End effectors, hands then feet.
+        targets: (E, 3) where each end effector's contact point should be [m].
+        reached: (E, 3) where it is [m].
+        residual_m: (E,) distance between the two [m].
+        reach_gap_m: Hand -> how far its contact stayed out of reach when the IK pulled
+            at full weight [m], for the hands solved again with the soft version.
+        iterations: IK steps taken.
+    """
+
+    q: np.ndarray
+    q35: np.ndarray
+    effectors: list[str]
+    targets: np.ndarray
+    reached: np.ndarray
+    residual_m: np.ndarray
+    reach_gap_m: dict[str, float]
+    iterations: int
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence C++ output on file descriptors 1 and 2 (placo reports neutral-pose collisions of the
+    hanging arms, which the keyframes never keep)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    libc = ctypes.CDLL(None)
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 1)
+            os.dup2(devnull.fileno(), 2)
+            yield
+            libc.fflush(None)
+    finally:
+        for fd, copy in ((1, saved[0]), (2, saved[1])):
+            os.dup2(copy, fd)
+            os.close(copy)
+
+
+def yaw_of(rot: np.ndarray) -> float:
+    """Heading [rad] of a rotation's x axis in the horizontal plane."""
+    return float(np.arctan2(rot[1, 0], rot[0, 0]))
+
+
+def yaw_matrix(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def support_polygon(soles: Sequence[np.ndarray], yaws: Sequence[float]) -> np.ndarray:
+    """Convex hull (P, 2) [m], counter-clockwise, of the foot soles' rectangles, given their
+    centres (3,) [m] and headings [rad]."""
+    half = contact_frames().sole_half_extents
+    corners = []
+    for centre, yaw in zip(soles, yaws, strict=True):
+        rot = yaw_matrix(yaw)[:2, :2]
+        for sx in (-1.0, 1.0):
+            for sy in (-1.0, 1.0):
+                corners.append(centre[:2] + rot @ (half * np.array([sx, sy])))
+    return convex_hull(np.array(corners))
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull (P, 2) of 2D points (monotone chain)."""
+    pts = sorted({(float(x), float(y)) for x, y in points})
+    if len(pts) < 3:
+        return np.array(pts)
+
+    def half(seq: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2:
+                (ax, ay), (bx, by) = out[-2], out[-1]
+                if (bx - ax) * (p[1] - ay) - (by - ay) * (p[0] - ax) > 0.0:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def polygon_margin(point: np.ndarray, polygon: np.ndarray) -> float:
+    """Signed distance [m] of a 2D point inside a counter-clockwise convex polygon: > 0
+    inside (distance to the nearest edge), < 0 outside."""
+    margins = []
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        edge = b - a
+        normal = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)  # outward for CCW
+        margins.append(-float(normal @ (point - a)))
+    return min(margins)
+
+
+class Retargeter:
+    """placo kinematics solver for G1 keyframes; holds the robot model between subtasks."""
+
+    def __init__(self, cfg: RetargetCfg) -> None:
+        self.cfg = cfg
+        with _quiet_stdout():
+            self.robot = placo_robot()
+        self.frames = contact_frames()
+
+    def solve(self, problem: IKProblem) -> IKResult:
+        """Solve one keyframe from ``problem.q_start``.
+
+        Raises:
+            SolverError: When placo's QP fails (the message names the step).
+        """
+        cfg, robot = self.cfg, self.robot
+        robot.state.q = problem.q_start.copy()
+        robot.update_kinematics()
+        solver = placo.KinematicsSolver(robot)
+        solver.mask_fbase(False)
+        solver.enable_joint_limits(True)
+        solver.enable_velocity_limits(True)
+        solver.dt = cfg.step_s
+        solver.add_regularization_task(cfg.regularization)
+        base_yaw = yaw_of(problem.R_world_base)
+        targets: dict[str, np.ndarray] = {}
+        hand_tasks: dict[str, placo.PositionTask] = {}
+        for hand in problem.hands:
+            target = hand.point + self.frames.palm_radius * hand.normal
+            task = solver.add_position_task(PALM_FRAMES[hand.effector], target)
+            task.configure(hand.effector, "soft", cfg.hand_weight)
+            targets[hand.effector] = target
+            hand_tasks[hand.effector] = task
+        for foot in problem.feet:
+            frame = SOLE_FRAMES[foot.effector]
+            if foot.in_contact:
+                task = solver.add_frame_task(frame, _flat_pose(foot.point, base_yaw))
+                task.configure(foot.effector, "soft", cfg.foot_weight, cfg.foot_flat_weight)
+                continue
+            # A standing foot: flat on its support, and only guided to the human's stance in
+            # the plane, so a shorter robot may step closer to what it reaches for.
+            height = solver.add_position_task(frame, foot.point)
+            height.configure(f"{foot.effector}_height", "soft", cfg.foot_weight)
+            height.mask.set_axises("z", "world")
+            stance = solver.add_position_task(frame, foot.point)
+            stance.configure(f"{foot.effector}_stance", "soft", cfg.stance_weight)
+            stance.mask.set_axises("xy", "world")
+            flat = solver.add_orientation_task(frame, yaw_matrix(base_yaw))
+            flat.configure(f"{foot.effector}_flat", "soft", cfg.foot_flat_weight)
+        # The heading of the human placement; roll and pitch stay free, so the robot may lean
+        # where the taller human only bent its back.
+        base = solver.add_orientation_task(BASE_FRAME, problem.R_world_base)
+        base.configure("base", "soft", cfg.base_weight)
+        base.mask.set_axises("z", "world")
+        posture = solver.add_joints_task()
+        posture.set_joints(dict(zip(g1.G1_JOINT_NAMES, problem.posture.tolist(), strict=True)))
+        posture.configure("posture", "soft", cfg.posture_weight)
+        collisions = solver.add_avoid_self_collisions_constraint()
+        collisions.configure("self_collisions", "soft", cfg.collision_weight)
+        collisions.self_collisions_margin = cfg.collision_margin_m
+        collisions.self_collisions_trigger = cfg.collision_trigger_m
+        soles = [foot.point for foot in problem.feet]
+        # placo wants the polygon clockwise.
+        polygon = support_polygon(soles, [base_yaw] * len(soles))[::-1]
+        com = solver.add_com_polygon_constraint(list(polygon), cfg.com_margin_m)
+        com.configure("com_support", "soft", cfg.com_weight)
+        steps = self._iterate(solver)
+        gaps = {
+            name: float(
+                np.linalg.norm(robot.get_T_world_frame(PALM_FRAMES[name])[:3, 3] - targets[name])
+            )
+            for name in hand_tasks
+        }
+        missed = {name: gap for name, gap in gaps.items() if gap > cfg.reach_tolerance_m}
+        if missed:
+            # The soft version: an unreachable hand only leans towards its contact, so it
+            # cannot drag the body out of the human's posture; solved again from the start.
+            for name in missed:
+                hand_tasks[name].configure(name, "soft", cfg.unreachable_weight)
+            robot.state.q = problem.q_start.copy()
+            robot.update_kinematics()
+            steps += self._iterate(solver)
+        q = robot.state.q.copy()
+        effectors, want, got = [], [], []
+        for hand in problem.hands:
+            effectors.append(hand.effector)
+            want.append(targets[hand.effector])
+            got.append(robot.get_T_world_frame(PALM_FRAMES[hand.effector])[:3, 3])
+        for foot in problem.feet:
+            effectors.append(foot.effector)
+            want.append(foot.point)
+            got.append(robot.get_T_world_frame(SOLE_FRAMES[foot.effector])[:3, 3])
+        want_a, got_a = np.array(want).reshape(-1, 3), np.array(got).reshape(-1, 3)
+        return IKResult(
+            q=q,
+            q35=g1.pin_to_q35(q),
+            effectors=effectors,
+            targets=want_a,
+            reached=got_a,
+            residual_m=np.linalg.norm(got_a - want_a, axis=1),
+            reach_gap_m=missed,
+            iterations=steps,
+        )
+
+    def _iterate(self, solver: placo.KinematicsSolver) -> int:
+        """IK steps until q moves by less than the tolerance; returns how many."""
+        robot = self.robot
+        for step in range(1, self.cfg.iterations + 1):
+            before = robot.state.q.copy()
+            try:
+                solver.solve(True)
+            except RuntimeError as err:
+                raise SolverError(f"placo IK failed at step {step}: {err}") from None
+            robot.update_kinematics()
+            if np.linalg.norm(robot.state.q - before) < self.cfg.tolerance:
+                return step
+        return self.cfg.iterations
+
+
+def _flat_pose(point: np.ndarray, yaw: float) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, :3] = yaw_matrix(yaw)
+    pose[:3, 3] = point
+    return pose
+
+
+def start_configuration(base_xy: np.ndarray, R_world_base: np.ndarray) -> np.ndarray:
+    """Pinocchio ``q`` (36,) to start from: the G1's own standing posture at ``base_xy``
+    [m], with the base's yaw.
+
+    Not the mapped human posture: a human's straight legs put the G1 at its knee limits,
+    where the bounded IK steps get stuck, and a human's arms at the sides go through the
+    G1's wider torso; the posture task pulls towards the human's angles from there.
+    """
+    q35 = g1.standing_q35()
+    q35[:2] = base_xy
+    q35[5] = yaw_of(R_world_base)
+    return g1.q35_to_pin(q35)

@@ -1,0 +1,32 @@
+"""Stage `retarget`: one G1 keyframe (35-D) per subtask from the human pose and the
+transferred contacts, with placo IK.
+
+Usage: python stages/retarget.py <scenario>   (reads params.yaml, data/<scenario>/scene/,
+generate/, masks/ and contacts/, writes data/<scenario>/retarget/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.retarget.pipeline import retarget_scenario
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    root = DATA_DIR / scenario
+    retarget_scenario(
+        scenario,
+        root / "scene",
+        root / "generate",
+        root / "masks",
+        root / "contacts",
+        stage_dir(scenario, "retarget"),
+        cfg.retarget,
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])
