@@ -66,9 +66,9 @@ def test_bad_params_fail_at_start_up_naming_the_key(workdir):
         params.write_text(original)
 
 
-def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
+def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     dvc = [sys.executable, "-m", "dvc"]
-    first = _run([*dvc, "repro", "contacts@tiny"], workdir)
+    first = _run([*dvc, "repro", "retarget@tiny"], workdir)
     assert first.returncode == 0, first.stderr
     root = workdir / "data" / "tiny"
     plan = json.loads((root / "scene" / "plan.json").read_text())
@@ -84,6 +84,8 @@ def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
             f"clouds/contact_sheets/subtask_{i}.png",
             f"contacts/subtasks/subtask_{i}.npz",
             f"contacts/plots/subtask_{i}.png",
+            f"retarget/keyframes/subtask_{i}.npz",
+            f"retarget/plots/subtask_{i}.png",
         ):
             assert (root / path).is_file(), path
     masks = json.loads((root / "masks" / "metrics.json").read_text())
@@ -94,6 +96,12 @@ def test_tiny_perception_subgraph_runs_then_is_cached(workdir):
     contacts = json.loads((root / "contacts" / "metrics.json").read_text())
     assert contacts["contact_error_median_m"] < contacts["naive_contact_error_median_m"]
     assert contacts["contact_error_median_m"] < 0.1
-    second = _run([*dvc, "repro", "contacts@tiny"], workdir)
+    assert (root / "retarget" / "keyframes.mcap").is_file()
+    retarget = json.loads((root / "retarget" / "metrics.json").read_text())
+    assert retarget["keyframes"] == n
+    assert retarget["joint_limit_violation_max_rad"] == 0.0
+    assert retarget["unreachable_contacts"] == 0
+    assert retarget["hand_contact_residual_max_m"] <= 0.005
+    second = _run([*dvc, "repro", "retarget@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout

@@ -15,9 +15,7 @@ class RetargetCfg:
 
     Attributes:
         hand_weight: Hand contact position tasks (soft, high weight) [-].
-        unreachable_weight: A hand contact missed by more than ``reach_tolerance_m`` is
-            solved again with this weight, so it leans towards the contact without dragging
-            the body along [-].
+        reach_step_m: Each IK step aims a hand at most this far from where it is [m].
         base_weight: Base orientation of the human placement [-].
         posture_weight: Mapped human joint angles; low, so they only guide [-].
         regularization: placo's damping of each step [-].
@@ -45,7 +43,7 @@ class RetargetCfg:
     stance_weight: float = 10.0
     com_weight: float = 1e3
     collision_weight: float = 1e4
-    unreachable_weight: float = 1.0
+    reach_step_m: float = 0.05
     base_weight: float = 10.0
     posture_weight: float = 1e-2
     regularization: float = 1e-3
@@ -61,7 +59,6 @@ class RetargetCfg:
         errors = []
         weights = (
             self.hand_weight,
-            self.unreachable_weight,
             self.foot_weight,
             self.foot_flat_weight,
             self.stance_weight,
@@ -77,6 +74,8 @@ class RetargetCfg:
             errors.append(("com_margin_m", "margins and tolerances must be >= 0 m"))
         if self.collision_trigger_m <= self.collision_margin_m:
             errors.append(("collision_trigger_m", "must exceed collision_margin_m"))
+        if self.reach_step_m <= 0.0:
+            errors.append(("reach_step_m", "must be > 0 m"))
         if self.iterations < 1 or self.tolerance <= 0.0:
             errors.append(("iterations", "needs iterations >= 1 and tolerance > 0"))
         return errors

@@ -15,8 +15,10 @@ and is guided by the human's joint angles. Here, per keyframe (weights in
   :mod:`.robot`, margin ``collision_margin_m``) and the CoM over the support polygon (a
   hard constraint with margin ``com_margin_m``), all hard.
 
-Every contact task is soft with a high weight, so an unreachable contact cannot make the QP
-infeasible: the solve goes on, and the miss is reported with its distance.
+Every task is soft, so an unreachable contact cannot make the QP infeasible, and each hand
+is pulled towards its contact by a bounded error (``reach_step_m``) that the much heavier
+feet outweigh: an unreachable hand leans as far as it can without dragging the body off its
+feet (the soft version), and the miss is reported with its distance.
 """
 
 from __future__ import annotations
@@ -84,11 +86,12 @@ class IKResult:
         q: Pinocchio configuration (36,).
         q35: Keyframe configuration (35,): base position [m], roll-pitch-yaw [rad], joints.
         effectors: End effectors, hands then feet.
-        targets: (E, 3) where each end effector's contact point should be [m].
+        targets: (E, 3) where each end effector's palm or sole centre should be [m] (for a
+            standing foot: on its support, below where it is).
         reached: (E, 3) where it is [m].
         residual_m: (E,) distance between the two [m].
-        reach_gap_m: Hand -> how far its contact stayed out of reach when the IK pulled
-            at full weight [m], for the hands solved again with the soft version.
+        unreachable: Hand -> how far it stays from its target [m], for those missed by more
+            than ``reach_tolerance_m``.
         iterations: IK steps taken.
     """
 
@@ -98,7 +101,7 @@ class IKResult:
     targets: np.ndarray
     reached: np.ndarray
     residual_m: np.ndarray
-    reach_gap_m: dict[str, float]
+    unreachable: dict[str, float]
     iterations: int
 
 
@@ -238,28 +241,22 @@ class Retargeter:
         collisions.configure("self_collisions", "soft", cfg.collision_weight)
         collisions.self_collisions_margin = cfg.collision_margin_m
         collisions.self_collisions_trigger = cfg.collision_trigger_m
-        soles = [foot.point for foot in problem.feet]
-        # placo wants the polygon clockwise.
-        polygon = support_polygon(soles, [base_yaw] * len(soles))[::-1]
-        com = solver.add_com_polygon_constraint(list(polygon), cfg.com_margin_m)
+        com = solver.add_com_polygon_constraint([], cfg.com_margin_m)
         com.configure("com_support", "soft", cfg.com_weight)
-        steps = self._iterate(solver)
-        gaps = {
-            name: float(
-                np.linalg.norm(robot.get_T_world_frame(PALM_FRAMES[name])[:3, 3] - targets[name])
-            )
-            for name in hand_tasks
-        }
-        missed = {name: gap for name, gap in gaps.items() if gap > cfg.reach_tolerance_m}
-        if missed:
-            # The soft version: an unreachable hand only leans towards its contact, so it
-            # cannot drag the body out of the human's posture; solved again from the start.
-            for name in missed:
-                hand_tasks[name].configure(name, "soft", cfg.unreachable_weight)
-            robot.state.q = problem.q_start.copy()
-            robot.update_kinematics()
-            steps += self._iterate(solver)
+        steps = self._iterate(
+            solver,
+            {PALM_FRAMES[n]: (t, targets[n]) for n, t in hand_tasks.items()},
+            com,
+            [SOLE_FRAMES[foot.effector] for foot in problem.feet],
+            base_yaw,
+        )
+        # The QP meets the joint limits up to its tolerance (1e-16 rad); the keyframe meets
+        # them exactly.
         q = robot.state.q.copy()
+        model = robot.model
+        q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
+        robot.state.q = q.copy()
+        robot.update_kinematics()
         effectors, want, got = [], [], []
         for hand in problem.hands:
             effectors.append(hand.effector)
@@ -267,24 +264,52 @@ class Retargeter:
             got.append(robot.get_T_world_frame(PALM_FRAMES[hand.effector])[:3, 3])
         for foot in problem.feet:
             effectors.append(foot.effector)
-            want.append(foot.point)
-            got.append(robot.get_T_world_frame(SOLE_FRAMES[foot.effector])[:3, 3])
+            sole = robot.get_T_world_frame(SOLE_FRAMES[foot.effector])[:3, 3]
+            # A standing foot may step in the plane; only its support's height is a target.
+            want.append(foot.point if foot.in_contact else np.r_[sole[:2], foot.point[2]])
+            got.append(sole)
         want_a, got_a = np.array(want).reshape(-1, 3), np.array(got).reshape(-1, 3)
+        residual = np.linalg.norm(got_a - want_a, axis=1)
         return IKResult(
             q=q,
             q35=g1.pin_to_q35(q),
             effectors=effectors,
             targets=want_a,
             reached=got_a,
-            residual_m=np.linalg.norm(got_a - want_a, axis=1),
-            reach_gap_m=missed,
+            residual_m=residual,
+            unreachable={
+                e: float(r)
+                for e, r in zip(effectors, residual, strict=True)
+                if e.endswith("_hand") and r > cfg.reach_tolerance_m
+            },
             iterations=steps,
         )
 
-    def _iterate(self, solver: placo.KinematicsSolver) -> int:
-        """IK steps until q moves by less than the tolerance; returns how many."""
-        robot = self.robot
+    def _iterate(
+        self,
+        solver: placo.KinematicsSolver,
+        goals: dict[str, tuple[placo.PositionTask, np.ndarray]],
+        com: placo.CoMPolygonConstraint,
+        soles: list[str],
+        yaw: float,
+    ) -> int:
+        """IK steps until q moves by less than the tolerance; returns how many.
+
+        Each goal's task is aimed at most ``reach_step_m`` from where its frame is: a far
+        goal is approached by small linearised steps instead of one that overshoots, and an
+        unreachable one pulls with a bounded error, so it cannot drag the feet along. The
+        support polygon follows the soles, since a standing foot may step.
+        """
+        robot, limit = self.robot, self.cfg.reach_step_m
         for step in range(1, self.cfg.iterations + 1):
+            centres = [robot.get_T_world_frame(frame)[:3, 3] for frame in soles]
+            # placo wants the polygon clockwise.
+            com.polygon = list(support_polygon(centres, [yaw] * len(centres))[::-1])
+            for frame, (task, goal) in goals.items():
+                here = robot.get_T_world_frame(frame)[:3, 3]
+                gap = goal - here
+                norm = float(np.linalg.norm(gap))
+                task.target_world = here + gap * min(1.0, limit / norm) if norm > 0.0 else goal
             before = robot.state.q.copy()
             try:
                 solver.solve(True)

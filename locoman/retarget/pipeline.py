@@ -183,7 +183,7 @@ def _check(
         "prompt": entry["prompt"],
         "residual_m": residual,
         "unreachable": {
-            **result.reach_gap_m,
+            **result.unreachable,
             **{
                 e: r
                 for e, r in residual.items()
