@@ -43,7 +43,7 @@ class RetargetCfg:
     stance_weight: float = 10.0
     com_weight: float = 1e3
     collision_weight: float = 1e4
-    reach_step_m: float = 0.05
+    reach_step_m: float = 0.01
     base_weight: float = 10.0
     posture_weight: float = 1e-2
     regularization: float = 1e-3
