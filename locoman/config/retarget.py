@@ -6,7 +6,7 @@ margins of its hard constraints.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass
@@ -31,7 +31,9 @@ class RetargetCfg:
         collision_margin_m: [m].
         collision_trigger_m: Pairs closer than this enter the QP [m].
         reach_tolerance_m: A contact missed by more is reported as unreachable [m].
-        iterations: Most IK steps per keyframe.
+        start_knees_rad: Knee angles of the standing postures the IK starts from, in turn,
+            until one meets every contact [rad].
+        iterations: Most IK steps per start.
         step_s: Each step moves every joint by at most its velocity limit times this, so
             a far target is approached, not jumped at [s].
         tolerance: Stop when a step moves q by less than this [-].
@@ -51,6 +53,7 @@ class RetargetCfg:
     collision_margin_m: float = 0.005
     collision_trigger_m: float = 0.03
     reach_tolerance_m: float = 0.005
+    start_knees_rad: list[float] = field(default_factory=lambda: [0.42, 1.2])
     iterations: int = 500
     step_s: float = 0.05
     tolerance: float = 1e-4
@@ -76,6 +79,8 @@ class RetargetCfg:
             errors.append(("collision_trigger_m", "must exceed collision_margin_m"))
         if self.reach_step_m <= 0.0:
             errors.append(("reach_step_m", "must be > 0 m"))
+        if not self.start_knees_rad or not all(0.0 <= k <= 2.5 for k in self.start_knees_rad):
+            errors.append(("start_knees_rad", "needs at least one knee angle in [0, 2.5] rad"))
         if self.iterations < 1 or self.tolerance <= 0.0:
             errors.append(("iterations", "needs iterations >= 1 and tolerance > 0"))
         return errors

@@ -68,14 +68,14 @@ class IKProblem:
         feet: Foot contacts (``in_contact``) and the standing feet.
         R_world_base: Base orientation of the human placement.
         posture: Mapped human joint angles (29,) [rad].
-        q_start: Pinocchio configuration (36,) the solve starts from.
+        base_xy: (2,) where the base starts [m].
     """
 
     hands: tuple[ContactTarget, ...]
     feet: tuple[ContactTarget, ...]
     R_world_base: np.ndarray
     posture: np.ndarray
-    q_start: np.ndarray
+    base_xy: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)
@@ -190,13 +190,28 @@ class Retargeter:
         self.frames = contact_frames()
 
     def solve(self, problem: IKProblem) -> IKResult:
-        """Solve one keyframe from ``problem.q_start``.
+        """Solve one keyframe, from each of the starts of :func:`start_configurations` in
+        turn until one meets every contact; otherwise the one that comes closest.
 
         Raises:
             SolverError: When placo's QP fails (the message names the step).
         """
+        best: IKResult | None = None
+        steps = 0
+        for q_start in start_configurations(problem, self.cfg.start_knees_rad):
+            result = self._solve_from(problem, q_start)
+            steps += result.iterations
+            if best is None or _total_miss(result) < _total_miss(best):
+                best = result
+            if not result.unreachable:
+                break
+        if best is None:
+            raise SolverError("retarget.start_knees_rad is empty: the IK has no start")
+        return dataclasses.replace(best, iterations=steps)
+
+    def _solve_from(self, problem: IKProblem, q_start: np.ndarray) -> IKResult:
         cfg, robot = self.cfg, self.robot
-        robot.state.q = problem.q_start.copy()
+        robot.state.q = q_start.copy()
         robot.update_kinematics()
         solver = placo.KinematicsSolver(robot)
         solver.mask_fbase(False)
@@ -328,15 +343,31 @@ def _flat_pose(point: np.ndarray, yaw: float) -> np.ndarray:
     return pose
 
 
-def start_configuration(base_xy: np.ndarray, R_world_base: np.ndarray) -> np.ndarray:
-    """Pinocchio ``q`` (36,) to start from: the G1's own standing posture at ``base_xy``
-    [m], with the base's yaw.
+def start_configurations(problem: IKProblem, knees: Sequence[float]) -> list[np.ndarray]:
+    """Pinocchio configurations (36,) to start from: the G1's own standing posture with its
+    knees bent by each of ``knees`` [rad] (hips and ankles by half as much, so the torso stays
+    upright), at ``problem.base_xy`` with the base's heading, soles on the feet's support.
 
     Not the mapped human posture: a human's straight legs put the G1 at its knee limits,
     where the bounded IK steps get stuck, and a human's arms at the sides go through the
-    G1's wider torso; the posture task pulls towards the human's angles from there.
+    G1's wider torso; the posture task pulls towards the human's angles from there. A
+    crouched start reaches low contacts that the local IK does not find from standing.
     """
-    q35 = g1.standing_q35()
-    q35[:2] = base_xy
-    q35[5] = yaw_of(R_world_base)
-    return g1.q35_to_pin(q35)
+    support = float(np.mean([foot.point[2] for foot in problem.feet]))
+    starts = []
+    for knee in knees:
+        joints = dict(g1.STANDING_JOINTS)
+        for side in ("left", "right"):
+            joints[f"{side}_knee_joint"] = knee
+            joints[f"{side}_hip_pitch_joint"] = -0.5 * knee
+            joints[f"{side}_ankle_pitch_joint"] = -0.5 * knee
+        q35 = g1.standing_q35(joints)
+        q35[:2] = problem.base_xy
+        q35[2] += support
+        q35[5] = yaw_of(problem.R_world_base)
+        starts.append(g1.q35_to_pin(q35))
+    return starts
+
+
+def _total_miss(result: IKResult) -> float:
+    return float(sum(result.unreachable.values()))

@@ -20,7 +20,7 @@ from locoman.perception.io import POSE, PROMPTS, PROMPTS_FILE, read_png
 from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
 from locoman.perception.masks import load_truth, median_or_none
 from locoman.retarget.checks import com_support_margin, joint_limit_violation, self_collision_pairs
-from locoman.retarget.ik import IKProblem, IKResult, Retargeter
+from locoman.retarget.ik import IKProblem, IKResult, Retargeter, yaw_of
 from locoman.retarget.io import KEYFRAME, MCAP_FILE, PLOTS_DIR, keyframe_file
 from locoman.retarget.plot import keyframe_plot, render_keyframe
 from locoman.retarget.problem import body_scale, build_problem, g1_stance_half_width
@@ -139,6 +139,7 @@ def retarget_scenario(
             _scene_qpos(model, result.q, entry["object"], contacts["T_world_object"]),
             result,
             in_contact,
+            yaw_of(problem.R_world_base),
         )
         footer = "residual [mm]: " + ", ".join(
             f"{e} {1e3 * r:.1f}" for e, r in zip(result.effectors, result.residual_m, strict=True)

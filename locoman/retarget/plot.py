@@ -44,8 +44,11 @@ def render_keyframe(
     qpos: np.ndarray,
     result: IKResult,
     in_contact: list[bool],
+    heading: float,
 ) -> np.ndarray:
-    """The G1 at the keyframe, seen from its front left, with targets and reached points."""
+    """The G1 at the keyframe, seen from the front left of ``heading`` [rad] (the feet's;
+    a pelvis bent far over has no useful heading of its own), with targets and reached
+    points."""
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
@@ -53,7 +56,7 @@ def render_keyframe(
     base = result.q[:3]
     cam.lookat[:] = base + np.array([0.0, 0.0, -0.15])
     cam.distance = 2.6
-    cam.azimuth = float(np.degrees(result.q35[5])) + 180.0 - 40.0
+    cam.azimuth = float(np.degrees(heading)) + 180.0 - 40.0
     cam.elevation = -20.0
     option = mujoco.MjvOption()
     option.geomgroup[:] = 1

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from locoman.retarget.ik import ContactTarget, IKProblem, start_configuration, yaw_matrix, yaw_of
+from locoman.retarget.ik import ContactTarget, IKProblem, yaw_matrix, yaw_of
 from locoman.retarget.mapping import map_human_joints
 from locoman.scene import g1, human
 
@@ -114,7 +114,7 @@ def build_problem(
         feet=tuple(feet),
         R_world_base=R_world_base,
         posture=posture,
-        q_start=start_configuration(np.mean([f.point[:2] for f in feet], axis=0), R_world_base),
+        base_xy=np.mean([f.point[:2] for f in feet], axis=0),
     )
 
 
