@@ -37,6 +37,8 @@ bench: setup
 	$(BIN)/python benchmarks/mm_branch.py
 	$(BIN)/dvc repro scene
 	$(BIN)/python benchmarks/perception.py
+	$(BIN)/dvc repro retarget
+	$(BIN)/python benchmarks/retarget_speed.py
 
 # Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
 params: setup
