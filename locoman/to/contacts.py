@@ -1,0 +1,84 @@
+"""Contact constraints of paper A, Sec. IV-A, as CasADi expressions.
+
+Each function returns the residuals of its equations (to be constrained to 0) or the
+left-hand sides of its inequalities (to be constrained >= 0), so that one contact kind is
+one call, and new kinds slot in beside them.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+SELECT_XY = ca.DM([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # [I_2, 0_{2x1}]
+
+
+def patch_contact(
+    r: ca.SX,
+    r_dot: ca.SX,
+    R: ca.SX,
+    omega: ca.SX,
+    surface_z: float,
+    stiffness: float,
+    slack: ca.SX,
+) -> ca.SX:
+    """Equalities of a patch on a horizontal surface at height ``surface_z`` [m]:
+
+    (2a) (r_z - z_g) + r_dot_z / k_z + s_z = 0  (distance, stabilised, with slack),
+    (2b) r_dot_xy = 0                          (no sliding),
+    (2c) [I_2, 0] R_z = 0                      (the patch's normal along the surface's),
+    (2d) omega_xy = 0                          (no rolling into the surface).
+
+    Args:
+        r, r_dot: Contact point [m] and its velocity [m/s], world.
+        R: (3, 3) contact frame in the world; its z axis is the patch normal.
+        omega: Angular velocity of the contact frame [rad/s], world.
+        stiffness: k_z [1/s].
+        slack: s_z [m].
+    """
+    return ca.vertcat(
+        (r[2] - surface_z) + r_dot[2] / stiffness + slack,
+        r_dot[0:2],
+        SELECT_XY @ R[:, 2],
+        omega[0:2],
+    )
+
+
+def friction_cone_cop(
+    force: ca.SX, moment: ca.SX, R: ca.SX, mu: float, size_x: float, size_y: float
+) -> ca.SX:
+    """Inequalities (>= 0) of the linearised friction cone (3a), the CoP inside the patch
+    (3b) and the yaw-moment bound (3c), in the contact frame R (columns: its axes).
+
+    ``size_x``, ``size_y`` are the patch's half-sizes [m]: the paper's X, Y, read so that
+    the centre of pressure stays on the patch."""
+    f = R.T @ force
+    tau = R.T @ moment
+    return ca.vertcat(
+        mu * f[2] - f[0],
+        mu * f[2] + f[0],
+        mu * f[2] - f[1],
+        mu * f[2] + f[1],
+        f[2] * size_x - tau[1],
+        f[2] * size_x + tau[1],
+        f[2] * size_y - tau[0],
+        f[2] * size_y + tau[0],
+        mu * f[2] * max(size_x, size_y) - tau[2],
+        mu * f[2] * max(size_x, size_y) + tau[2],
+    )
+
+
+def interactive_contact(
+    r_i: ca.SX, r_j: ca.SX, slack: ca.SX, R_i: ca.SX, R_j: ca.SX, omega_i: ca.SX, omega_j: ca.SX
+) -> ca.SX:
+    """Equalities of a patch of body A on body B (e.g. a hand on the box):
+
+    (4)  r_i - r_j + s_ij = 0,
+    (5a) [I_2, 0] (R_j^T R_i)_z = 0  (the patches' normals aligned),
+    (5b) omega_i - omega_j = 0       (no relative rotation).
+    """
+    return ca.vertcat(r_i - r_j + slack, SELECT_XY @ (R_j.T @ R_i)[:, 2], omega_i - omega_j)
+
+
+def newton_third_law(f_i: ca.SX, tau_i: ca.SX, f_j: ca.SX, tau_j: ca.SX) -> ca.SX:
+    """Equalities (6): f_i + f_j = 0, tau_i + tau_j = 0."""
+    return ca.vertcat(f_i + f_j, tau_i + tau_j)

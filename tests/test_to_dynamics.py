@@ -1,0 +1,171 @@
+"""Centroidal dynamics and contact kinds on single-body toy problems solved by IPOPT."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from locoman.to.contacts import (
+    friction_cone_cop,
+    interactive_contact,
+    newton_third_law,
+    patch_contact,
+)
+from locoman.to.dynamics import (
+    configuration_step,
+    momentum_step,
+    rigid_body_momentum,
+)
+from locoman.to.kinematics import euler_rates_to_world, rpy_matrix
+
+MASS = 5.0  # [kg]
+SIZE = np.array([0.25, 0.3, 0.2])  # [m] box extents; its frame sits at the bottom face centre
+INERTIA = ca.DM(np.diag(MASS / 12.0 * (SIZE[[1, 0, 0]] ** 2 + SIZE[[2, 2, 1]] ** 2)))
+COM = ca.DM([0.0, 0.0, 0.5 * SIZE[2]])
+DT = 0.02  # [s]
+
+
+def test_falling_body_follows_semi_implicit_euler():
+    """No contacts: the momentum gains m g dt per step and the body falls as (1) says."""
+    q, v = ca.SX.sym("q", 6), ca.SX.sym("v", 6)
+    h, com = rigid_body_momentum(q, v, MASS, INERTIA, COM)
+    step = ca.Function("step", [q, v], [momentum_step(h, com, [], MASS, DT), com])
+    momentum = ca.Function("h", [q, v], [h])
+    qk = np.array([0.0, 0.0, 1.0, 0.1, -0.2, 0.3])
+    vk = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
+    for _ in range(10):
+        h_next, _ = step(qk, vk)
+        # The next velocity is the one whose momentum is h_next (the angular part is 0).
+        v_next = vk.copy()
+        v_next[0:3] = np.asarray(h_next[0:3]).ravel() / MASS
+        np.testing.assert_allclose(np.asarray(h_next[3:]).ravel(), 0.0, atol=1e-12)
+        q_next = np.asarray(configuration_step(ca.DM(qk), ca.DM(v_next), DT)).ravel()
+        np.testing.assert_allclose(
+            np.asarray(momentum(q_next, v_next)).ravel(), np.asarray(h_next).ravel(), atol=1e-9
+        )
+        qk, vk = q_next, v_next
+    # Ten steps: v_z = -10 g dt, z = 1 - g dt^2 (1 + 2 + ... + 10).
+    assert vk[2] == pytest.approx(-10 * 9.81 * DT)
+    assert qk[2] == pytest.approx(1.0 - 9.81 * DT**2 * 55)
+    assert qk[0] == pytest.approx(0.5 * DT * 10)
+
+
+def _body(opti: ca.Opti, nodes: int, start: np.ndarray):
+    """A free box over ``nodes`` nodes starting at rest at ``start`` (p, rpy)."""
+    q, v = opti.variable(6, nodes), opti.variable(6, nodes)
+    opti.subject_to(q[:, 0] == start)
+    opti.subject_to(v[:, 0] == 0)
+    return q, v
+
+
+def _dynamics(opti, q, v, contacts_of):
+    for k in range(q.shape[1] - 1):
+        h, com = rigid_body_momentum(q[:, k], v[:, k], MASS, INERTIA, COM)
+        h_next, _ = rigid_body_momentum(q[:, k + 1], v[:, k + 1], MASS, INERTIA, COM)
+        opti.subject_to(h_next == momentum_step(h, com, contacts_of(k, com), MASS, DT))
+        opti.subject_to(q[:, k + 1] == configuration_step(q[:, k], v[:, k + 1], DT))
+
+
+def _solve(opti):
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes"})
+    return opti.solve()
+
+
+def test_patch_contact_holds_a_box_on_the_ground():
+    opti = ca.Opti()
+    nodes = 6
+    q, v = _body(opti, nodes, np.array([0.3, 0.1, 0.0, 0.0, 0.0, 0.4]))
+    f, tau, slack = opti.variable(3, nodes), opti.variable(3, nodes), opti.variable(1, nodes)
+    _dynamics(opti, q, v, lambda k, com: [(q[0:3, k], f[:, k], tau[:, k])])
+    cost = 0
+    for k in range(nodes):
+        R = rpy_matrix(q[3:6, k])
+        omega = euler_rates_to_world(q[3:6, k]) @ v[3:6, k]
+        opti.subject_to(patch_contact(q[0:3, k], v[0:3, k], R, omega, 0.0, 50.0, slack[k]) == 0)
+        opti.subject_to(friction_cone_cop(f[:, k], tau[:, k], R, 0.8, 0.12, 0.15) >= 0)
+        cost += 1e-6 * ca.sumsqr(ca.vertcat(f[:, k], tau[:, k])) + 1e5 * slack[k] ** 2
+        cost += 1e-1 * ca.sumsqr(v[:, k])
+    opti.minimize(cost)
+    sol = _solve(opti)
+    # The slack is a penalty, not a hard zero: the force regularisation buys a sinking of
+    # micrometres, as in the paper's formulation.
+    forces = sol.value(f)[:, :-1]
+    np.testing.assert_allclose(forces[2], MASS * 9.81, rtol=2e-3)
+    np.testing.assert_allclose(forces[:2], 0.0, atol=1e-6)
+    np.testing.assert_allclose(sol.value(q)[:, -1], sol.value(q)[:, 0], atol=1e-4)
+
+
+@pytest.mark.parametrize("pull", [0.5, 0.9])
+def test_friction_cone_holds_a_pull_within_mu_m_g_and_not_beyond(pull):
+    """A sideways pull on a box that may not slide (mu = 0.8): at 0.5 m g the ground pushes
+    back with 0.5 m g; at 0.9 m g no admissible force exists and IPOPT says so."""
+    opti = ca.Opti()
+    nodes = 4
+    q, v = _body(opti, nodes, np.zeros(6))
+    f, tau, slack = opti.variable(3, nodes), opti.variable(3, nodes), opti.variable(1, nodes)
+    push = ca.DM([pull * MASS * 9.81, 0.0, 0.0])
+    _dynamics(
+        opti,
+        q,
+        v,
+        lambda k, com: [(q[0:3, k], f[:, k], tau[:, k]), (com, push, ca.DM.zeros(3))],
+    )
+    for k in range(nodes):
+        R = rpy_matrix(q[3:6, k])
+        omega = euler_rates_to_world(q[3:6, k]) @ v[3:6, k]
+        if k > 0:  # node 0 is fixed at rest already
+            opti.subject_to(patch_contact(q[0:3, k], v[0:3, k], R, omega, 0.0, 50.0, slack[k]) == 0)
+        opti.subject_to(slack[k] == 0)
+        opti.subject_to(friction_cone_cop(f[:, k], tau[:, k], R, 0.8, 0.12, 0.15) >= 0)
+    opti.minimize(ca.sumsqr(f))
+    if pull < 0.8:
+        sol = _solve(opti)
+        np.testing.assert_allclose(sol.value(f)[0, :-1], -pull * MASS * 9.81, rtol=1e-6)
+        return
+    with pytest.raises(RuntimeError):
+        _solve(opti)
+    assert opti.stats()["return_status"] == "Infeasible_Problem_Detected"
+
+
+def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
+    """Box B rests on box A, which rests on the ground: the ground carries 2 m g, the
+    interface m g, and the two sides of the interface push equally and oppositely."""
+    opti = ca.Opti()
+    nodes = 5
+    top = float(SIZE[2])
+    qa, va = _body(opti, nodes, np.zeros(6))
+    qb, vb = _body(opti, nodes, np.array([0.0, 0.0, top, 0.0, 0.0, 0.0]))
+    fg, tg, sg = opti.variable(3, nodes), opti.variable(3, nodes), opti.variable(1, nodes)
+    fa, ta = opti.variable(3, nodes), opti.variable(3, nodes)  # on A, from B
+    fb, tb = opti.variable(3, nodes), opti.variable(3, nodes)  # on B, from A
+    sab = opti.variable(3, nodes)
+    top_of_a = [qa[0:3, k] + rpy_matrix(qa[3:6, k]) @ ca.DM([0, 0, top]) for k in range(nodes)]
+    _dynamics(
+        opti,
+        qa,
+        va,
+        lambda k, com: [(qa[0:3, k], fg[:, k], tg[:, k]), (top_of_a[k], fa[:, k], ta[:, k])],
+    )
+    _dynamics(opti, qb, vb, lambda k, com: [(qb[0:3, k], fb[:, k], tb[:, k])])
+    cost = 0
+    for k in range(nodes):
+        Ra, Rb = rpy_matrix(qa[3:6, k]), rpy_matrix(qb[3:6, k])
+        wa = euler_rates_to_world(qa[3:6, k]) @ va[3:6, k]
+        wb = euler_rates_to_world(qb[3:6, k]) @ vb[3:6, k]
+        opti.subject_to(patch_contact(qa[0:3, k], va[0:3, k], Ra, wa, 0.0, 50.0, sg[k]) == 0)
+        opti.subject_to(friction_cone_cop(fg[:, k], tg[:, k], Ra, 0.8, 0.12, 0.15) >= 0)
+        opti.subject_to(
+            interactive_contact(qb[0:3, k], top_of_a[k], sab[:, k], Rb, Ra, wb, wa) == 0
+        )
+        opti.subject_to(newton_third_law(fa[:, k], ta[:, k], fb[:, k], tb[:, k]) == 0)
+        opti.subject_to(friction_cone_cop(fb[:, k], tb[:, k], Rb, 0.8, 0.12, 0.15) >= 0)
+        cost += 1e-6 * ca.sumsqr(ca.vertcat(fg[:, k], tg[:, k], fb[:, k], tb[:, k]))
+        cost += 1e8 * (sg[k] ** 2 + ca.sumsqr(sab[:, k])) + 1e-1 * ca.sumsqr(
+            ca.vertcat(va[:, k], vb[:, k])
+        )
+    opti.minimize(cost)
+    sol = _solve(opti)
+    np.testing.assert_allclose(sol.value(fg)[2, :-1], 2 * MASS * 9.81, rtol=2e-3)
+    np.testing.assert_allclose(sol.value(fb)[2, :-1], MASS * 9.81, rtol=2e-3)
+    np.testing.assert_allclose(sol.value(fa)[:, :-1], -sol.value(fb)[:, :-1], atol=1e-9)
