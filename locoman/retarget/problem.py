@@ -20,25 +20,22 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from locoman.retarget.ik import ContactTarget, IKProblem, yaw_matrix, yaw_of
 from locoman.retarget.mapping import map_human_joints
+from locoman.retarget.robot import contact_frames
 from locoman.scene import g1, human
 
 FLOOR_Z = 0.0  # [m]
 UP = np.array([0.0, 0.0, 1.0])
-FEET = ("left_foot", "right_foot")
-HUMAN_SOLES = {"left_foot": "left_foot", "right_foot": "right_foot"}  # keypoint names
+FEET = ("left_foot", "right_foot")  # also the demonstrator's sole keypoints
 #: G1 base axes in the human pelvis frame (columns): x forward, y = -z (left), z = y (up).
 R_HUMAN_G1 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 def g1_stance_half_width() -> float:
     """Lateral distance [m] of the standing G1's soles from its pelvis."""
-    import pinocchio as pin
-
-    from locoman.retarget.robot import contact_frames
-
     model = g1.g1_pinocchio_model()
     data = model.createData()
     pin.framesForwardKinematics(model, data, g1.q35_to_pin(g1.standing_q35()))
@@ -99,7 +96,7 @@ def build_problem(
         if foot in stand_on:
             feet.append(ContactTarget(foot, stand_on[foot], UP, False))
             continue
-        sole_cam = pose["keypoints_cam_m"][names.index(HUMAN_SOLES[foot])]
+        sole_cam = pose["keypoints_cam_m"][names.index(foot)]
         local = heading.T @ (R_world_cam @ (sole_cam - pelvis_cam))
         offset = scale * local[:2]
         side = 1.0 if foot.startswith("left") else -1.0
