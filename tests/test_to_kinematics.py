@@ -31,6 +31,8 @@ def functions(kinematics):
     for name in FRAMES:
         R, p = k.frame_pose(name)
         outputs += [R, p]
+    for name in FRAMES:
+        outputs += list(k.frame_velocity(name))
     return ca.Function("kinematics", [k.q, k.v], outputs)
 
 
@@ -85,6 +87,26 @@ def test_centroidal_momentum_matches_pinocchio(functions):
         )
         np.testing.assert_allclose(h[:3], momentum.linear, atol=1e-8)
         np.testing.assert_allclose(h[3:], momentum.angular, atol=1e-8)
+
+
+def test_frame_velocities_match_pinocchio(functions):
+    model = g1.g1_pinocchio_model()
+    data = model.createData()
+    rng = np.random.default_rng(3)
+    first = 2 + 2 * len(FRAMES)
+    for _ in range(3):
+        q, v = _random_state(rng)
+        out = functions(q, v)
+        pin.forwardKinematics(model, data, pin_configuration(q), pin_velocity(q, v))
+        pin.updateFramePlacements(model, data)
+        for k, name in enumerate(FRAMES):
+            motion = pin.getFrameVelocity(
+                model, data, model.getFrameId(name), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            )
+            np.testing.assert_allclose(out[first + 2 * k].full().ravel(), motion.angular, atol=1e-9)
+            np.testing.assert_allclose(
+                out[first + 2 * k + 1].full().ravel(), motion.linear, atol=1e-9
+            )
 
 
 def test_unknown_frame_is_named(kinematics):

@@ -149,6 +149,17 @@ class SymbolicKinematics:
             p_joint + R_joint @ ca.DM(placement.translation),
         )
 
+    def frame_velocity(self, name: str) -> tuple[ca.SX, ca.SX]:
+        """World angular velocity [rad/s] and linear velocity [m/s] of a Pinocchio frame's
+        origin."""
+        if not self.model.existFrame(name):
+            raise KeyError(f"the model has no frame {name!r}")
+        frame = self.model.frames[self.model.getFrameId(name)]
+        _, p_joint = self._poses[frame.parentJoint]
+        w, v_joint = self._velocities[frame.parentJoint]
+        _, p = self.frame_pose(name)
+        return w, v_joint + ca.cross(w, p - p_joint)
+
     def com(self) -> ca.SX:
         """Centre of mass (3,) [m]."""
         total = ca.SX.zeros(3)
