@@ -102,7 +102,7 @@ def node_functions(
     dynamics = ca.vertcat(h1 - h - wrench * dt, q1 - q - v1 * dt)  # (1a), (1b)
     contact = ca.vertcat(
         *[
-            patch_contact(r, r_dot, R, omega, FLOOR_Z, cfg.stiffness, slack[k])
+            patch_contact(r, r_dot, R, omega, FLOOR_Z, cfg.stiffness, slack[k])[:5]
             for k, (r, r_dot, R, omega, _, _) in enumerate(soles)
         ]
     )
