@@ -1,0 +1,115 @@
+"""Stagewise costs of paper A, Table I, and the keyframe costs (9) and (10).
+
+Every cost is a weighted squared norm, w ||.||^2. The weights are the paper's; each is a
+field, so an ablation is a parameter change.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+
+from locoman.scene.g1 import G1_JOINT_NAMES
+
+LEGS = tuple(
+    k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("hip", "knee", "ankle"))
+)
+ARMS = tuple(
+    k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("shoulder", "elbow", "wrist"))
+)
+
+
+def _joint(name: str) -> int:
+    return 6 + G1_JOINT_NAMES.index(name)
+
+
+@dataclasses.dataclass(frozen=True)
+class CostWeights:
+    """Table I (stance, walking, regularisation, slack) and eqs. (9), (10).
+
+    Attributes:
+        com_over_feet: CoM (xy) over the feet's midpoint, stance [-].
+        leg_symmetry: Hip pitch/knee alike, hip roll and opposite yaw zero, stance [-].
+        foot_yaw_symmetry: Both feet's x axes alike, stance [-].
+        base_pose_stance: Base pitch and yaw, stance [-].
+        force: Contact forces and moments [-].
+        base_linear_velocity: [-].
+        base_angular_velocity: [-].
+        leg_velocity: [-].
+        arm_velocity: [-].
+        arm_angle: Arm joint angles towards zero [-].
+        base_height: Base height towards ``base_height_m`` [-].
+        base_height_m: [m].
+        timestep: Time step towards ``timestep_s`` [-].
+        timestep_s: [s].
+        slack: Slacks of (2a) and (4) [-].
+        keyframe_base: (9): base height and orientation at a keyframe node [-].
+        keyframe_foot: (10): feet midpoint at a keyframe's stance [-].
+    """
+
+    com_over_feet: float = 5e2
+    leg_symmetry: float = 3e2
+    foot_yaw_symmetry: float = 1e2
+    base_pose_stance: float = 1e1
+    force: float = 1e-6
+    base_linear_velocity: float = 1e-1
+    base_angular_velocity: float = 1.0
+    leg_velocity: float = 5e-1
+    arm_velocity: float = 1.0
+    arm_angle: float = 1.0
+    base_height: float = 1e2
+    base_height_m: float = 0.7
+    timestep: float = 1e2
+    timestep_s: float = 2e-2
+    slack: float = 1e5
+    keyframe_base: tuple[float, float] = (1e2, 1e1)
+    keyframe_foot: float = 5e2
+
+
+def stance_cost(
+    w: CostWeights, q: ca.SX, com: ca.SX, r_lf: ca.SX, r_rf: ca.SX, R_lf: ca.SX, R_rf: ca.SX
+) -> ca.SX:
+    """L_st of Table I: both feet down."""
+    legs = ca.vertcat(
+        q[_joint("left_hip_pitch_joint")] - q[_joint("right_hip_pitch_joint")],
+        q[_joint("left_hip_roll_joint")],
+        q[_joint("right_hip_roll_joint")],
+        q[_joint("left_hip_yaw_joint")] + q[_joint("right_hip_yaw_joint")],
+        q[_joint("left_knee_joint")] - q[_joint("right_knee_joint")],
+    )
+    return (
+        w.com_over_feet * ca.sumsqr(com[0:2] - 0.5 * (r_lf[0:2] + r_rf[0:2]))
+        + w.leg_symmetry * ca.sumsqr(legs)
+        + w.foot_yaw_symmetry * ca.sumsqr(R_lf[:, 0] - R_rf[:, 0])
+        + w.base_pose_stance * ca.sumsqr(q[4:6])
+    )
+
+
+def regularization_cost(
+    w: CostWeights, q: ca.SX, v: ca.SX, wrench: ca.SX, base_omega: ca.SX, dt: ca.SX
+) -> ca.SX:
+    """L_reg of Table I."""
+    legs = [6 + k for k in LEGS]
+    arms = [6 + k for k in ARMS]
+    return (
+        w.force * ca.sumsqr(wrench)
+        + w.base_linear_velocity * ca.sumsqr(v[0:3])
+        + w.base_angular_velocity * ca.sumsqr(base_omega)
+        + w.leg_velocity * ca.sumsqr(v[legs])
+        + w.arm_velocity * ca.sumsqr(v[arms])
+        + w.arm_angle * ca.sumsqr(q[arms])
+        + w.base_height * (q[2] - w.base_height_m) ** 2
+        + w.timestep * (dt - w.timestep_s) ** 2
+    )
+
+
+def keyframe_base_cost(w: CostWeights, q: ca.SX, q_keyframe: ca.SX) -> ca.SX:
+    """(9): the base height and orientation of a keyframe."""
+    height, orientation = w.keyframe_base
+    return height * (q[2] - q_keyframe[2]) ** 2 + orientation * ca.sumsqr(q[3:6] - q_keyframe[3:6])
+
+
+def keyframe_foot_cost(w: CostWeights, r_lf: ca.SX, r_rf: ca.SX, r_des: ca.SX) -> ca.SX:
+    """(10): the feet's midpoint at the keyframe's."""
+    return w.keyframe_foot * ca.sumsqr(0.5 * (r_lf[0:2] + r_rf[0:2]) - r_des[0:2])
