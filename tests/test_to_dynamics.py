@@ -10,6 +10,7 @@ from locoman.to.contacts import (
     friction_cone_cop,
     interactive_contact,
     newton_third_law,
+    no_rolling,
     patch_contact,
 )
 from locoman.to.dynamics import (
@@ -82,7 +83,12 @@ def test_patch_contact_holds_a_box_on_the_ground():
     for k in range(nodes):
         R = rpy_matrix(q[3:6, k])
         omega = euler_rates_to_world(q[3:6, k]) @ v[3:6, k]
-        opti.subject_to(patch_contact(q[0:3, k], v[0:3, k], R, omega, 0.0, 50.0, slack[k]) == 0)
+        opti.subject_to(
+            ca.vertcat(
+                patch_contact(q[0:3, k], v[0:3, k], R, 0.0, 50.0, slack[k]), no_rolling(omega)
+            )
+            == 0
+        )
         opti.subject_to(friction_cone_cop(f[:, k], tau[:, k], R, 0.8, 0.12, 0.15) >= 0)
         cost += 1e-6 * ca.sumsqr(ca.vertcat(f[:, k], tau[:, k])) + 1e5 * slack[k] ** 2
         cost += 1e-1 * ca.sumsqr(v[:, k])
@@ -115,7 +121,12 @@ def test_friction_cone_holds_a_pull_within_mu_m_g_and_not_beyond(pull):
         R = rpy_matrix(q[3:6, k])
         omega = euler_rates_to_world(q[3:6, k]) @ v[3:6, k]
         if k > 0:  # node 0 is fixed at rest already
-            opti.subject_to(patch_contact(q[0:3, k], v[0:3, k], R, omega, 0.0, 50.0, slack[k]) == 0)
+            opti.subject_to(
+                ca.vertcat(
+                    patch_contact(q[0:3, k], v[0:3, k], R, 0.0, 50.0, slack[k]), no_rolling(omega)
+                )
+                == 0
+            )
         opti.subject_to(slack[k] == 0)
         opti.subject_to(friction_cone_cop(f[:, k], tau[:, k], R, 0.8, 0.12, 0.15) >= 0)
     opti.minimize(ca.sumsqr(f))
@@ -153,7 +164,10 @@ def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
         Ra, Rb = rpy_matrix(qa[3:6, k]), rpy_matrix(qb[3:6, k])
         wa = euler_rates_to_world(qa[3:6, k]) @ va[3:6, k]
         wb = euler_rates_to_world(qb[3:6, k]) @ vb[3:6, k]
-        opti.subject_to(patch_contact(qa[0:3, k], va[0:3, k], Ra, wa, 0.0, 50.0, sg[k]) == 0)
+        opti.subject_to(
+            ca.vertcat(patch_contact(qa[0:3, k], va[0:3, k], Ra, 0.0, 50.0, sg[k]), no_rolling(wa))
+            == 0
+        )
         opti.subject_to(friction_cone_cop(fg[:, k], tg[:, k], Ra, 0.8, 0.12, 0.15) >= 0)
         opti.subject_to(
             interactive_contact(qb[0:3, k], top_of_a[k], sab[:, k], Rb, Ra, wb, wa) == 0

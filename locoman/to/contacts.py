@@ -13,34 +13,33 @@ SELECT_XY = ca.DM([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # [I_2, 0_{2x1}]
 
 
 def patch_contact(
-    r: ca.SX,
-    r_dot: ca.SX,
-    R: ca.SX,
-    omega: ca.SX,
-    surface_z: float,
-    stiffness: float,
-    slack: ca.SX,
+    r: ca.SX, r_dot: ca.SX, R: ca.SX, surface_z: float, stiffness: float, slack: ca.SX
 ) -> ca.SX:
     """Equalities of a patch on a horizontal surface at height ``surface_z`` [m]:
 
     (2a) (r_z - z_g) + r_dot_z / k_z + s_z = 0  (distance, stabilised, with slack),
     (2b) r_dot_xy = 0                          (no sliding),
-    (2c) [I_2, 0] R_z = 0                      (the patch's normal along the surface's),
-    (2d) omega_xy = 0                          (no rolling into the surface).
+    (2c) [I_2, 0] R_z = 0                      (the patch's normal along the surface's).
 
     Args:
         r, r_dot: Contact point [m] and its velocity [m/s], world.
         R: (3, 3) contact frame in the world; its z axis is the patch normal.
-        omega: Angular velocity of the contact frame [rad/s], world.
         stiffness: k_z [1/s].
         slack: s_z [m].
     """
     return ca.vertcat(
-        (r[2] - surface_z) + r_dot[2] / stiffness + slack,
-        r_dot[0:2],
-        SELECT_XY @ R[:, 2],
-        omega[0:2],
+        (r[2] - surface_z) + r_dot[2] / stiffness + slack, r_dot[0:2], SELECT_XY @ R[:, 2]
     )
+
+
+def no_rolling(omega: ca.SX) -> ca.SX:
+    """(2d) omega_xy = 0: a body on a surface does not start to rotate into it.
+
+    Use it where (2c) is not imposed at the next node too: with (2c) at every node, (1b)
+    already fixes these rates, and imposing both makes the constraint Jacobian
+    rank-deficient (on the G1's feet, IPOPT's dual infeasibility stalled at 1e12).
+    """
+    return omega[0:2]
 
 
 def friction_cone_cop(

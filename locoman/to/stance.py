@@ -1,11 +1,12 @@
 """Whole-body TO of the G1 with both feet in patch contact: the first slice of paper A's
-formulation (Sec. IV) that runs end to end, used to check the pieces together and to time
-IPOPT as the horizon grows.
+formulation (Sec. IV) that runs end to end (no stage yet), used to check the pieces
+together and to time IPOPT as the horizon grows (``benchmarks/to_stance.py``).
 
 Per node k: q_k, v_k (35 each), per foot the force f and moment tau at the sole centre, the
 slack of (2a); per interval the time step dt_k. Constraints: the centroidal dynamics (1)
-with h = A_G(q) v from :mod:`.kinematics`, the patch contact (2) of both soles on the floor,
-the friction cone and CoP (3), joint limits, and time-step bounds. Costs: Table I's stance
+with h = A_G(q) v from :mod:`.kinematics`, the patch contact (2a)-(2c) of both soles on the
+floor (not (2d): see :func:`~locoman.to.contacts.no_rolling`), the friction cone and CoP
+(3), joint limits, and time-step bounds. Costs: Table I's stance
 and regularisation terms, the slack penalty, and the keyframe base cost (9) at the last
 node. Each node's residuals and costs are one SX function, mapped over the nodes inside an
 MX graph, as the prototype in issue 6 found fastest.
@@ -94,22 +95,22 @@ def node_functions(
         omega, v_ankle = kin.frame_velocity(link)
         r = p_ankle + R_ankle @ ca.DM(centre)
         r_dot = v_ankle + ca.cross(omega, R_ankle @ ca.DM(centre))
-        soles.append((r, r_dot, R_ankle, omega, f[3 * k : 3 * k + 3], tau[3 * k : 3 * k + 3]))
+        soles.append((r, r_dot, R_ankle, f[3 * k : 3 * k + 3], tau[3 * k : 3 * k + 3]))
     h, com = kin.centroidal_momentum(), kin.com()
     momentum = ca.Function("momentum", [q, v], [h, com])
     h1, _ = momentum(q1, v1)
-    wrench = wrench_sum(com, [(r, fk, tk) for r, _, _, _, fk, tk in soles], kin.mass)
+    wrench = wrench_sum(com, [(r, fk, tk) for r, _, _, fk, tk in soles], kin.mass)
     dynamics = ca.vertcat(h1 - h - wrench * dt, q1 - q - v1 * dt)  # (1a), (1b)
     contact = ca.vertcat(
         *[
-            patch_contact(r, r_dot, R, omega, FLOOR_Z, cfg.stiffness, slack[k])[:5]
-            for k, (r, r_dot, R, omega, _, _) in enumerate(soles)
+            patch_contact(r, r_dot, R, FLOOR_Z, cfg.stiffness, slack[k])
+            for k, (r, r_dot, R, _, _) in enumerate(soles)
         ]
     )
     cone = ca.vertcat(
-        *[friction_cone_cop(fk, tk, R, cfg.mu, half[0], half[1]) for _, _, R, _, fk, tk in soles]
+        *[friction_cone_cop(fk, tk, R, cfg.mu, half[0], half[1]) for _, _, R, fk, tk in soles]
     )
-    (r_l, _, R_l, *_), (r_r, _, R_r, *_) = soles
+    (r_l, _, R_l, _, _), (r_r, _, R_r, _, _) = soles
     base_omega = euler_rates_to_world(q[3:6]) @ v[3:6]
     cost = (
         stance_cost(w, q, com, r_l, r_r, R_l, R_r)
