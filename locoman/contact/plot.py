@@ -12,6 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from locoman.artifacts.pictures import fit_tile
 from locoman.contact.kabsch import apply
 from locoman.contact.transfer import SubtaskInputs, Transfer
 from locoman.perception import camera
@@ -36,15 +37,6 @@ def _project(points_world: np.ndarray, inputs: SubtaskInputs, scale: float) -> n
     return px
 
 
-def _fit_tile(image: np.ndarray) -> tuple[np.ndarray, float]:
-    """The image scaled into a white TILE x TILE square, and the scale applied."""
-    h, w = image.shape[:2]
-    scale = TILE / max(h, w)
-    tile = cv2.resize(image, (round(w * scale), round(h * scale)))
-    pad = ((0, TILE - tile.shape[0]), (0, TILE - tile.shape[1]), (0, 0))
-    return np.pad(tile, pad, constant_values=255), scale
-
-
 def _inside(p: np.ndarray) -> bool:
     return bool(np.isfinite(p).all() and 0 <= p[0] < TILE and 0 <= p[1] < TILE)
 
@@ -53,7 +45,7 @@ def contact_plot(
     inputs: SubtaskInputs, result: Transfer, truth_world: np.ndarray | None, title: str
 ) -> np.ndarray:
     """The picture (H, W, 3) uint8 of a subtask."""
-    left, g_scale = _fit_tile(inputs.rgb)
+    left, g_scale = fit_tile(inputs.rgb, TILE)
     for u, v in result.pool.gen_px * g_scale:
         cv2.circle(left, (int(u), int(v)), 2, POOL_RGB, -1)
     names = inputs.keypoint_names
@@ -70,7 +62,7 @@ def contact_plot(
                 OURS_RGB,
                 1,
             )
-    right, s_scale = _fit_tile(inputs.sim_rgb)
+    right, s_scale = fit_tile(inputs.sim_rgb, TILE)
     cloud = _project(
         apply(result.registration.affine, result.anchor.undo(inputs.cloud[::3])), inputs, s_scale
     )

@@ -8,6 +8,7 @@ import cv2
 import mujoco
 import numpy as np
 
+from locoman.artifacts.pictures import fit_tile
 from locoman.retarget.ik import IKResult
 from locoman.scene import g1
 
@@ -15,14 +16,6 @@ TILE = 420  # [px]
 CONTACT_RGBA = (0.15, 0.8, 0.15, 1.0)
 STANDING_RGBA = (0.6, 0.6, 0.6, 1.0)
 REACHED_RGBA = (0.1, 0.35, 1.0, 1.0)
-
-
-def _fit_tile(image: np.ndarray) -> np.ndarray:
-    h, w = image.shape[:2]
-    scale = TILE / max(h, w)
-    tile = cv2.resize(image, (round(w * scale), round(h * scale)))
-    pad = ((0, TILE - tile.shape[0]), (0, TILE - tile.shape[1]), (0, 0))
-    return np.pad(tile, pad, constant_values=255)
 
 
 def _add_sphere(scene: mujoco.MjvScene, pos: np.ndarray, radius: float, rgba) -> None:
@@ -73,7 +66,7 @@ def render_keyframe(
 
 def keyframe_plot(generated: np.ndarray, robot: np.ndarray, title: str, footer: str) -> np.ndarray:
     """R_g and the rendered keyframe side by side, with a title and a footer line."""
-    tiles = np.hstack([_fit_tile(generated), _fit_tile(robot)])
+    tiles = np.hstack([fit_tile(generated, TILE)[0], fit_tile(robot, TILE)[0]])
     band = np.full((28, tiles.shape[1], 3), 255, np.uint8)
     foot = band.copy()
     font = cv2.FONT_HERSHEY_SIMPLEX
