@@ -14,6 +14,7 @@ from locoman.contact.kabsch import apply, decompose_similarity, similarity_matri
 from locoman.contact.lift import fit_anchor, support_up
 from locoman.contact.registration import (
     Surface,
+    _fit_yaw,
     draw_hypotheses,
     icp,
     level,
@@ -119,6 +120,41 @@ def test_icp_converges_from_a_perturbed_start():
     np.testing.assert_allclose(apply(refined, source), seen, atol=0.01)
     assert overlap_scores(source, surface, refined[None], 0.02)[0] > 0.9
     assert overlap_scores(source, surface, start[None], 0.02)[0] < 0.5
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    yaw=st.floats(-3.0, 3.0),
+    scale=st.floats(0.7, 1.4),
+    shift=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
+)
+def test_yaw_fit_recovers_a_turn_about_the_vertical(yaw, scale, shift):
+    rng = np.random.default_rng(4)
+    src = rng.normal(size=(1, 40, 3))
+    rz = Rotation.from_euler("z", yaw).as_matrix()
+    dst = scale * src @ rz.T + np.asarray(shift)
+    fitted = _fit_yaw(src, dst, np.ones((1, 40)), True, (0.5, 2.0))[0]
+    np.testing.assert_allclose(fitted[:3, :3], scale * rz, atol=1e-9)
+    np.testing.assert_allclose(fitted[:3, 3], shift, atol=1e-9)
+
+
+def test_upright_icp_keeps_the_start_tilt():
+    rng = np.random.default_rng(5)
+    surface, _ = _box_surface(rng)
+    truth = similarity_matrix(1.0, _rotation(5), np.array([0.2, -0.1, 0.4]))
+    camera_world = apply(truth, np.zeros((1, 3)))[0]
+    facing = (surface.normals * (camera_world - surface.points)).sum(axis=1) > 0.0
+    source = apply(np.linalg.inv(truth), surface.points[facing][::2])
+    # Start at the true tilt, turned 8 deg about the vertical and shifted.
+    turn = np.eye(4)
+    turn[:3, :3] = Rotation.from_euler("z", 0.14).as_matrix()
+    start = turn @ truth
+    start[:3, 3] += [0.04, -0.03, 0.0]
+    refined = icp(source, surface, start[None], 0.1, 40, True, (0.5, 2.0), upright=True)[0]
+    # No tilt added: the world z row of the rotation is the start's (the scale may change).
+    scale = np.cbrt(np.linalg.det(refined[:3, :3]))
+    np.testing.assert_allclose(refined[2, :3] / scale, truth[2, :3], atol=1e-9)
+    np.testing.assert_allclose(apply(refined, source), apply(truth, source), atol=0.01)
 
 
 def test_axis_refinement_recovers_a_stretched_variant():

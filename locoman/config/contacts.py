@@ -66,6 +66,8 @@ class RegistrationCfg:
             paper's single SVD.
         symmetry_turns: Each hypothesis is also tried turned by 360/turns degrees about the
             object's vertical axis (4: boxes and tables; 1: no turns).
+        upright: ICP keeps each levelled hypothesis upright and only turns it about the
+            vertical (objects stand upright on the person's ground plane).
         max_tilt_deg: Hypotheses that tilt the person's ground plane further than this from
             the horizontal are dropped (objects stand upright) [deg].
         max_facing_deg: Hypotheses that turn the object's approach side (+x) further than
@@ -90,6 +92,7 @@ class RegistrationCfg:
     trim_rounds: int = 2
     symmetry_turns: int = 4
     max_tilt_deg: float = 20.0
+    upright: bool = True
     max_facing_deg: float = 45.0
     model_points: int = 3000
     icp_points: int = 600

@@ -21,10 +21,13 @@ What this implementation adds, and why:
   object frame, with each factor of D pulled towards 1 by a prior so that an axis the view
   barely sees keeps the similarity's scale.
 - **Symmetric poses.** Boxes and tables look the same turned about their vertical axis, so
-  every hypothesis is also tried turned by 360/turns degrees. The winner has the best
-  overlap among the hypotheses that stand the object upright on the person's ground plane
-  and put the person facing the object's approach side (+x in the object frame), which is
-  how every scene is built: the overlap cannot tell symmetric poses apart, the person can.
+  every hypothesis is also tried turned by 360/turns degrees. ICP keeps each levelled
+  hypothesis upright (``upright``): it only turns it about the vertical, since a view that
+  shows one face and a top does not pin the tilt, and objects stand on the floor. The
+  winner has the best overlap among the hypotheses that stand the object upright on the
+  person's ground plane and put the person facing the object's approach side (+x in the
+  object frame), which is how every scene is built: the overlap cannot tell symmetric
+  poses apart, the person can.
 
 All hypotheses are drawn, solved by SVD and refined by ICP at once (batched over the leading
 axis, with one KD-tree per cloud).
@@ -170,16 +173,20 @@ def icp(
     iterations: int,
     with_scale: bool,
     scale_range: tuple[float, float],
+    upright: bool = False,
 ) -> np.ndarray:
     """View-aware symmetric ICP of a batch of starts (H, 4, 4); returns the refined ones.
 
     Pairs: each source point with its nearest target point, and each target point facing
     the camera with its nearest source point; pairs longer than ``max_distance`` [m] are
-    dropped. Each step solves the weighted similarity of all pairs (Umeyama).
+    dropped. Each step solves the weighted similarity of all pairs (Umeyama); ``upright``
+    keeps each start's tilt and only turns it about the world's vertical (:func:`_fit_yaw`).
     """
     target_tree = cKDTree(surface.points)
     source_tree = cKDTree(source)
     transforms = np.array(init, dtype=float)
+    scales = np.cbrt(np.linalg.det(transforms[:, :3, :3]))
+    tilts = transforms[:, :3, :3] / scales[:, None, None]
     h, n, m = len(transforms), len(source), len(surface.points)
     for _ in range(iterations):
         moved = apply(transforms, source)
@@ -197,9 +204,44 @@ def icp(
         dst = np.concatenate([forward_dst, np.broadcast_to(surface.points, (h, m, 3))], axis=1)
         weights = np.concatenate([forward_w, reverse_w], axis=1).astype(float)
         enough = weights.sum(axis=1) >= 3
-        fitted = _fit(src, dst, weights, with_scale, scale_range)
+        if upright:
+            turned = np.einsum("hij,hnj->hni", tilts, src)
+            fitted = _fit_yaw(turned, dst, weights, with_scale, scale_range)
+            fitted[:, :3, :3] = fitted[:, :3, :3] @ tilts
+        else:
+            fitted = _fit(src, dst, weights, with_scale, scale_range)
         transforms = np.where(enough[:, None, None], fitted, transforms)
     return transforms
+
+
+def _fit_yaw(
+    src: np.ndarray,
+    dst: np.ndarray,
+    weights: np.ndarray,
+    with_scale: bool,
+    scale_range: tuple[float, float],
+) -> np.ndarray:
+    """Weighted similarity (H, 4, 4) dst ~ s Rz(yaw) src + t, a turn about the world's z
+    only: the 2D Procrustes angle of the horizontal parts, then the scale and translation."""
+    w = weights / np.maximum(weights.sum(axis=-1, keepdims=True), 1e-300)
+    mu_s = np.einsum("hn,hnk->hk", w, src)
+    mu_d = np.einsum("hn,hnk->hk", w, dst)
+    xs, xd = src - mu_s[:, None], dst - mu_d[:, None]
+    a = np.einsum("hn,hn->h", w, xs[..., 0] * xd[..., 0] + xs[..., 1] * xd[..., 1])
+    b = np.einsum("hn,hn->h", w, xs[..., 0] * xd[..., 1] - xs[..., 1] * xd[..., 0])
+    yaw = np.arctan2(b, a)
+    rot = np.zeros((len(yaw), 3, 3))
+    rot[:, 0, 0] = rot[:, 1, 1] = np.cos(yaw)
+    rot[:, 0, 1], rot[:, 1, 0] = -np.sin(yaw), np.sin(yaw)
+    rot[:, 2, 2] = 1.0
+    scale = np.ones(len(yaw))
+    if with_scale:
+        turned = np.einsum("hij,hnj->hni", rot, xs)
+        num = np.einsum("hn,hnk,hnk->h", w, xd, turned)
+        den = np.maximum(np.einsum("hn,hnk,hnk->h", w, xs, xs), 1e-300)
+        scale = np.clip(num / den, *scale_range)
+    trans = mu_d - scale[:, None] * np.einsum("hij,hj->hi", rot, mu_s)
+    return similarity_matrix(scale, rot, trans)
 
 
 def _pairs(
@@ -414,6 +456,7 @@ def register(
         cfg.icp_iterations,
         with_scale,
         scale_range,
+        upright=cfg.upright and person.up is not None,
     )
     overlaps = overlap_scores(source, surface, flat, cfg.overlap_distance * size)
     tilts = tilt_errors(flat, person.up)
