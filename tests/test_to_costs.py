@@ -1,0 +1,51 @@
+"""Table I and the keyframe costs (9), (10) on numbers worked by hand."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from locoman.scene import g1
+from locoman.to.costs import (
+    CostWeights,
+    keyframe_base_cost,
+    keyframe_foot_cost,
+    regularization_cost,
+    stance_cost,
+)
+
+W = CostWeights()
+
+
+def _value(expr) -> float:
+    return float(ca.evalf(expr))
+
+
+def test_keyframe_costs_are_the_papers_weighted_squares():
+    q = ca.DM(np.r_[0.0, 0.0, 0.7, 0.1, 0.0, 0.2, np.zeros(29)])
+    q_kf = ca.DM(np.r_[1.0, 1.0, 0.6, 0.0, 0.0, 0.0, np.zeros(29)])
+    assert _value(keyframe_base_cost(W, q, q_kf)) == pytest.approx(100 * 0.01 + 10 * 0.05)
+    r_lf, r_rf = ca.DM([0.0, 0.1, 0.0]), ca.DM([0.2, -0.1, 0.0])
+    assert _value(keyframe_foot_cost(W, r_lf, r_rf, ca.DM([0.1, 0.3, 0.0]))) == pytest.approx(
+        500 * 0.09
+    )
+
+
+def test_stance_cost_vanishes_for_a_symmetric_stance_over_the_feet():
+    q = ca.DM(g1.standing_q35())  # symmetric legs, zero hip roll and yaw, level base
+    r_lf, r_rf = ca.DM([0.0, 0.12, 0.0]), ca.DM([0.0, -0.12, 0.0])
+    com = ca.DM([0.0, 0.0, 0.7])
+    assert _value(stance_cost(W, q, com, r_lf, r_rf, ca.DM.eye(3), ca.DM.eye(3))) == pytest.approx(
+        0
+    )
+    off = ca.DM([0.1, 0.0, 0.7])
+    assert _value(stance_cost(W, q, off, r_lf, r_rf, ca.DM.eye(3), ca.DM.eye(3))) == pytest.approx(
+        500 * 0.01
+    )
+
+
+def test_regularization_penalises_the_timestep_and_base_height():
+    q = ca.DM(np.r_[0.0, 0.0, 0.8, np.zeros(32)])
+    cost = regularization_cost(W, q, ca.DM.zeros(35), ca.DM.zeros(12), ca.DM.zeros(3), 0.03)
+    assert _value(cost) == pytest.approx(100 * 0.01 + 100 * 0.01**2)
