@@ -9,13 +9,15 @@ and is guided by the human's joint angles. Here, per keyframe (weights in
 - feet in contact: frame tasks of the sole centres at the foot contacts, flat and turned like
   the base; standing feet: flat on their support, with a low-weight pull in the plane
   towards the stance :mod:`.problem` derives from the human, so the robot may step closer;
-- the base orientation of the human placement, soft;
+- the heading of the human placement (roll and pitch free, so the robot may lean);
 - the mapped human joint angles, a low-weight posture task, so they only guide;
-- joint limits, self-collision avoidance (placo's constraint on the pure-shape model of
-  :mod:`.robot`, margin ``collision_margin_m``) and the CoM over the support polygon (a
-  hard constraint with margin ``com_margin_m``), all hard.
+- joint limits, hard; self-collision avoidance (placo's constraint on the pure-shape model
+  of :mod:`.robot`, margin ``collision_margin_m``) and the CoM over the support polygon
+  (margin ``com_margin_m``), both heavy but soft.
 
-Every task is soft, so an unreachable contact cannot make the QP infeasible, and each hand
+placo bounds each step by the velocity limits, and a hard task or constraint that one
+bounded step cannot meet makes the QP infeasible; so everything but the joint limits is
+soft, an unreachable contact cannot make the QP infeasible, and each hand
 is pulled towards its contact by a bounded error (``reach_step_m``) that the much heavier
 feet outweigh: an unreachable hand leans as far as it can without dragging the body off its
 feet (the soft version), and the miss is reported with its distance.
