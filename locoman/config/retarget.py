@@ -1,7 +1,7 @@
 """Typed configuration of retargeting (paper A, Sec. III-A.3).
 
 Section ``retarget``: the weights of the placo IK tasks, and the
-margins of its hard constraints.
+margins of its constraints.
 """
 
 from __future__ import annotations
