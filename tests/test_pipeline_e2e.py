@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from locoman.artifacts.mcap_io import read_json_messages
+
 pytestmark = pytest.mark.slow
 
 
@@ -96,7 +98,8 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     contacts = json.loads((root / "contacts" / "metrics.json").read_text())
     assert contacts["contact_error_median_m"] < contacts["naive_contact_error_median_m"]
     assert contacts["contact_error_median_m"] < 0.1
-    assert (root / "retarget" / "keyframes.mcap").is_file()
+    frames = read_json_messages(root / "retarget" / "keyframes.mcap", "/tf")
+    assert len(frames) == n and frames[0][0] == "foxglove.FrameTransforms"
     retarget = json.loads((root / "retarget" / "metrics.json").read_text())
     assert retarget["keyframes"] == n
     assert retarget["joint_limit_violation_max_rad"] == 0.0
