@@ -105,9 +105,9 @@ def retarget_scenario(
         result = retargeter.solve(problem)
         seconds.append(time.perf_counter() - t0)
         standing = feet_left_standing(contacts, standing)
-        row = _check(i, entry, problem, result, contacts, generate_dir, cfg)
-        rows.append(row)
         points = contact_points(problem, result)
+        row = _check(i, entry, result, points, contacts, generate_dir, cfg)
+        rows.append(row)
         in_contact = [t.in_contact for t in (*problem.hands, *problem.feet)]
         surfaces = [str(s) for s in contacts["surfaces"]]
         by_effector = dict(zip([str(e) for e in contacts["effectors"]], surfaces, strict=True))
@@ -168,8 +168,8 @@ def retarget_scenario(
 def _check(
     i: int,
     entry: dict[str, Any],
-    problem: IKProblem,
     result: IKResult,
+    points: np.ndarray,
     contacts: dict[str, Any],
     generate_dir: Path,
     cfg: RetargetCfg,
@@ -200,7 +200,6 @@ def _check(
     truth = load_truth(generate_dir, i)
     if truth is not None:
         true_world = true_contacts(truth, plan_contacts, contacts["T_world_object"])
-        points = contact_points(problem, result)
         row["truth_error_m"] = {
             e: float(np.linalg.norm(points[result.effectors.index(e)] - true_world[k]))
             for k, e in enumerate(plan_contacts)
