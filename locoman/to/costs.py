@@ -32,7 +32,13 @@ class CostWeights:
         com_over_feet: CoM (xy) over the feet's midpoint, stance [-].
         leg_symmetry: Hip pitch/knee alike, hip roll and opposite yaw zero, stance [-].
         foot_yaw_symmetry: Both feet's x axes alike, stance [-].
-        base_pose_stance: Base pitch and yaw, stance [-].
+        base_pose_stance: Base pitch and yaw, stance [-]. The yaw is taken relative to a
+            reference per node (the current subtask's keyframe yaw): Table I regularises
+            the yaw, and a task that turns the robot needs a yaw to regularise towards.
+        foot_clearance: Swing foot ``clearance_m`` above the surface it left, walking [-].
+        clearance_m: [m].
+        leg_roll: Hip roll angles, walking [-].
+        base_pose_walking: Base pitch and yaw (relative, as in stance), walking [-].
         force: Contact forces and moments [-].
         base_linear_velocity: [-].
         base_angular_velocity: [-].
@@ -46,12 +52,18 @@ class CostWeights:
         slack: Slacks of (2a) and (4) [-].
         keyframe_base: (9): base height and orientation at a keyframe node [-].
         keyframe_foot: (10): feet midpoint at a keyframe's stance [-].
+        object_goal: Object position (xy) and yaw at the plan's target, last node; not in
+            the paper, which states the target without its cost [-].
     """
 
     com_over_feet: float = 5e2
     leg_symmetry: float = 3e2
     foot_yaw_symmetry: float = 1e2
     base_pose_stance: float = 1e1
+    foot_clearance: float = 2e3
+    clearance_m: float = 0.07
+    leg_roll: float = 1e1
+    base_pose_walking: float = 1e2
     force: float = 1e-6
     base_linear_velocity: float = 1e-1
     base_angular_velocity: float = 1.0
@@ -65,12 +77,25 @@ class CostWeights:
     slack: float = 1e5
     keyframe_base: tuple[float, float] = (1e2, 1e1)
     keyframe_foot: float = 5e2
+    object_goal: float = 1e4
+
+
+def _hip(side: str, axis: str) -> int:
+    return _joint(f"{side}_hip_{axis}_joint")
 
 
 def stance_cost(
-    w: CostWeights, q: ca.SX, com: ca.SX, r_lf: ca.SX, r_rf: ca.SX, R_lf: ca.SX, R_rf: ca.SX
+    w: CostWeights,
+    q: ca.SX,
+    com: ca.SX,
+    r_lf: ca.SX,
+    r_rf: ca.SX,
+    R_lf: ca.SX,
+    R_rf: ca.SX,
+    yaw_ref: ca.SX | float = 0.0,
 ) -> ca.SX:
-    """L_st of Table I: both feet down."""
+    """L_st of Table I: both feet down. ``com`` is c_all, the CoM of the robot and what it
+    carries [m]."""
     legs = ca.vertcat(
         q[_joint("left_hip_pitch_joint")] - q[_joint("right_hip_pitch_joint")],
         q[_joint("left_hip_roll_joint")],
@@ -82,8 +107,22 @@ def stance_cost(
         w.com_over_feet * ca.sumsqr(com[0:2] - 0.5 * (r_lf[0:2] + r_rf[0:2]))
         + w.leg_symmetry * ca.sumsqr(legs)
         + w.foot_yaw_symmetry * ca.sumsqr(R_lf[:, 0] - R_rf[:, 0])
-        + w.base_pose_stance * ca.sumsqr(q[4:6])
+        + w.base_pose_stance * (q[4] ** 2 + (q[5] - yaw_ref) ** 2)
     )
+
+
+def walking_cost(
+    w: CostWeights, q: ca.SX, swing_height: ca.SX | None, yaw_ref: ca.SX | float = 0.0
+) -> ca.SX:
+    """L_wk of Table I: one foot in the air, ``swing_height`` [m] above the surface it
+    left (None: no swing foot)."""
+    roll = ca.vertcat(q[_hip("left", "roll")], q[_hip("right", "roll")])
+    cost = w.leg_roll * ca.sumsqr(roll) + w.base_pose_walking * (
+        q[4] ** 2 + (q[5] - yaw_ref) ** 2
+    )
+    if swing_height is not None:
+        cost += w.foot_clearance * (swing_height - w.clearance_m) ** 2
+    return cost
 
 
 def regularization_cost(
@@ -108,6 +147,11 @@ def keyframe_base_cost(w: CostWeights, q: ca.SX, q_keyframe: ca.SX) -> ca.SX:
     """(9): the base height and orientation of a keyframe."""
     height, orientation = w.keyframe_base
     return height * (q[2] - q_keyframe[2]) ** 2 + orientation * ca.sumsqr(q[3:6] - q_keyframe[3:6])
+
+
+def object_goal_cost(w: CostWeights, q_object: ca.SX, goal: ca.SX) -> ca.SX:
+    """The object at its target: position xy [m] and yaw [rad] (goal = (x, y, yaw))."""
+    return w.object_goal * (ca.sumsqr(q_object[0:2] - goal[0:2]) + (q_object[5] - goal[2]) ** 2)
 
 
 def keyframe_foot_cost(w: CostWeights, r_lf: ca.SX, r_rf: ca.SX, r_des: ca.SX) -> ca.SX:

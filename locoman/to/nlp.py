@@ -1,0 +1,291 @@
+"""A multiple-shooting NLP whose constraints and costs are stage functions, with exact
+derivatives assembled from per-stage SX derivatives (issue 6's prototype: "a per-node
+exact Hessian, one small SX function mapped over the nodes and given to IPOPT via
+``hess_lag``, was the fastest").
+
+The decision vector is x = (z_0, ..., z_{N-1}), one block of ``width`` variables per node;
+the parameters are one column of ``n_params`` per node. A stage k couples z_k and z_{k+1}:
+``F(z_k, z_{k+1}, p_k, p_{k+1}) -> (g_k, l_k)``; a node function touches one node only:
+``F(z_k, p_k) -> (g_k, l_k)``. Stages or nodes with the same constraint kinds share one
+function (a :class:`StageGroup`) mapped over them. Expensive node-local terms (the robot's
+kinematics) belong in a node function: its derivatives are half the size, and one function
+serves every node whatever the contact mode. For each group the Jacobian of g,
+the gradient of l and the Hessian of sigma l + lambda' g with respect to (z_k, z_{k+1}) are
+SX functions of one stage; the global matrices are their nonzeros scattered (and, where
+blocks overlap on z_{k+1}, summed) by constant index maps, so IPOPT's oracles cost N small
+evaluations and a sparse gather.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sps
+
+from locoman.errors import SolverError
+
+
+class SolverBuildError(SolverError):
+    """The NLP could not be built or compiled."""
+
+
+@dataclasses.dataclass(frozen=True)
+class StageGroup:
+    """Stages (or nodes) sharing one function.
+
+    Attributes:
+        function: ``(z, z_next, p, p_next) -> (g, l)`` for a stage, ``(z, p) -> (g, l)``
+            for a node function; SX.
+        stages: Stage indices k (a stage couples nodes k and k + 1), or node indices.
+        lower: (rows,) lower bounds of g.
+        upper: (rows,) upper bounds of g.
+    """
+
+    function: ca.Function
+    stages: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def rows(self) -> int:
+        return int(self.function.size1_out(0))
+
+    @property
+    def span(self) -> int:
+        """Nodes one call touches: 2 for a stage, 1 for a node function."""
+        return self.function.n_in() // 2
+
+
+@dataclasses.dataclass(frozen=True)
+class NLPResult:
+    """IPOPT's answer; ``status`` is its return status."""
+
+    status: str
+    success: bool
+    iterations: int
+    x: np.ndarray
+    lam_g: np.ndarray
+    cost: float
+    max_constraint_violation: float
+    solve_time_s: float
+
+
+def _derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
+    """Per-stage (g, l), (g, nz(J)), (l, grad l), nz(triu H) functions of one group."""
+    fn, span = group.function, group.span
+    zs = [ca.SX.sym(f"z{i}", width) for i in range(span)]
+    ps = [ca.SX.sym(f"p{i}", fn.size1_in(span)) for i in range(span)]
+    lam, sigma = ca.SX.sym("lam", group.rows), ca.SX.sym("sigma")
+    g, cost = fn(*zs, *ps)
+    zz = ca.vertcat(*zs)
+    args = [*zs, *ps]
+    jac = ca.jacobian(g, zz)
+    grad = ca.densify(ca.gradient(cost, zz))
+    hess = ca.triu(ca.hessian(sigma * cost + ca.dot(lam, g), zz)[0])
+    name = fn.name()
+    return (
+        ca.Function(f"{name}_val", args, [g, cost]),
+        ca.Function(f"{name}_jac", args, [g, ca.vertcat(*jac.nonzeros())]),
+        ca.Function(f"{name}_grad", args, [cost, grad]),
+        ca.Function(f"{name}_hess", [*args, lam, sigma], [ca.vertcat(*hess.nonzeros())]),
+    ), (jac.sparsity(), hess.sparsity())
+
+
+def _local_to_global(stage: int, width: int, local: np.ndarray) -> np.ndarray:
+    """Columns of (z_k, z_{k+1}) (or of z_k) -> indices of x."""
+    return stage * width + local
+
+
+def _compile(functions: Sequence[ca.Function], cache_dir: Path) -> dict[str, ca.Function]:
+    """C code of ``functions`` compiled (``-O1``) into a shared library cached by the hash
+    of its source, so a second build with the same formulation loads it at once."""
+    gen = ca.CodeGenerator("locoman_to.c", {"with_header": False})
+    for fn in functions:
+        gen.add(fn)
+    source = gen.dump()
+    digest = hashlib.sha256(source.encode()).hexdigest()[:16]
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    library = cache_dir / f"to_{digest}.so"
+    if not library.is_file():
+        c_file = cache_dir / f"to_{digest}.c"
+        c_file.write_text(source)
+        partial = library.with_suffix(".so.part")
+        cmd = ["gcc", "-O1", "-shared", "-fPIC", str(c_file), "-o", str(partial), "-lm"]
+        print(f"[to] compiling {len(source) / 1e6:.1f} MB of C (cached in {cache_dir})", flush=True)
+        try:
+            subprocess.run(cmd, check=True, capture_output=True, text=True)
+        except (OSError, subprocess.CalledProcessError) as exc:
+            detail = getattr(exc, "stderr", "") or str(exc)
+            raise SolverBuildError(
+                f"compiling the TO's derivatives failed ({' '.join(cmd)}): {detail[:2000]}. "
+                "Install gcc, or set solve.compile: false to run them interpreted."
+            ) from None
+        partial.rename(library)
+        c_file.unlink()
+    return {fn.name(): ca.external(fn.name(), str(library)) for fn in functions}
+
+
+class StageNLP:
+    """The NLP of :mod:`locoman.to` with its IPOPT solver, built once.
+
+    Args:
+        width: Variables per node.
+        nodes: N.
+        n_params: Parameters per node.
+        groups: Every stage 0 .. N - 2 in exactly one stage group, and any node groups.
+        ipopt: IPOPT options.
+        cache_dir: Where the node groups' compiled derivatives are cached; None runs them
+            interpreted. Stage groups are always interpreted: they are cheap, and there
+            are many of them.
+    """
+
+    def __init__(
+        self,
+        width: int,
+        nodes: int,
+        n_params: int,
+        groups: Sequence[StageGroup],
+        ipopt: dict,
+        cache_dir: Path | None = None,
+    ) -> None:
+        tic = time.perf_counter()
+        covered = np.sort(np.concatenate([g.stages for g in groups if g.span == 2]))
+        if not np.array_equal(covered, np.arange(nodes - 1)):
+            raise SolverBuildError("every stage 0 .. N-2 must be in exactly one group")
+        self.width, self.nodes, self.n_params = width, nodes, n_params
+        self.groups = list(groups)
+        derivs = [_derivatives(g, width) for g in self.groups]
+        functions = [f for fns, _ in derivs for f in fns]
+        if cache_dir is not None:
+            heavy = [f for g, (fns, _) in zip(self.groups, derivs, strict=True) if g.span == 1 for f in fns]
+            loaded = _compile(heavy, cache_dir) if heavy else {}
+            # The NLP's own f and g stay interpreted: CasADi differentiates them once when
+            # it sets IPOPT up, and a compiled function has no derivatives to offer.
+            functions = [
+                f if f.name().endswith("_val") else loaded.get(f.name(), f) for f in functions
+            ]
+        per_group = [functions[4 * i : 4 * i + 4] for i in range(len(self.groups))]
+        self.n_x = width * nodes
+        X, P = ca.MX.sym("x", self.n_x), ca.MX.sym("p", n_params * nodes)
+        self.n_g = sum(len(g.stages) * g.rows for g in self.groups)
+        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.n_g)
+        Z = ca.reshape(X, width, nodes)
+        Pm = ca.reshape(P, n_params, nodes)
+        g_parts, cost, jac_parts, grad_parts, hess_parts = [], 0, [], [], []
+        jac_trip: list[np.ndarray] = [[], []]
+        grad_idx, hess_trip = [], [[], []]
+        row = 0
+        lower, upper = [], []
+        for group, (val, jac_fn, grad_fn, hess_fn), (_, (jsp, hsp)) in zip(
+            self.groups, per_group, derivs, strict=True
+        ):
+            k = np.asarray(group.stages, dtype=int)
+            n = len(k)
+            cols = [list(k + i) for i in range(group.span)]
+            args = [Z[:, c] for c in cols] + [Pm[:, c] for c in cols]
+            g, l = val.map(n)(*args)
+            g_parts.append(ca.vec(g))
+            cost += ca.sum2(l)
+            _, jnz = jac_fn.map(n)(*args)
+            jac_parts.append(ca.vec(jnz))
+            jr, jc = jsp.get_triplet()
+            for c, stage in enumerate(k):
+                jac_trip[0].append(row + c * group.rows + np.asarray(jr, dtype=int))
+                jac_trip[1].append(_local_to_global(stage, width, np.asarray(jc, dtype=int)))
+            _, gr = grad_fn.map(n)(*args)
+            grad_parts.append(ca.vec(gr))
+            for stage in k:
+                grad_idx.append(_local_to_global(stage, width, np.arange(group.span * width)))
+            lam = ca.reshape(lam_g[row : row + n * group.rows], group.rows, n)
+            hnz = hess_fn.map(n)(*args, lam, ca.repmat(lam_f, 1, n))
+            hess_parts.append(ca.vec(hnz))
+            hr, hc = hsp.get_triplet()
+            for stage in k:
+                hess_trip[0].append(_local_to_global(stage, width, np.asarray(hr, dtype=int)))
+                hess_trip[1].append(_local_to_global(stage, width, np.asarray(hc, dtype=int)))
+            lower.append(np.tile(group.lower, n))
+            upper.append(np.tile(group.upper, n))
+            row += n * group.rows
+        self.lbg, self.ubg = np.concatenate(lower), np.concatenate(upper)
+        G = ca.vertcat(*g_parts)
+        hess_nz = ca.vertcat(*hess_parts)
+
+        jrows, jcols = np.concatenate(jac_trip[0]), np.concatenate(jac_trip[1])
+        jsp_all, jmap = ca.Sparsity.triplet(self.n_g, self.n_x, jrows, jcols, True)
+        order = np.empty(len(jmap), dtype=int)
+        order[np.asarray(jmap, dtype=int)] = np.arange(len(jmap))
+        jac = ca.MX(jsp_all, ca.vertcat(*jac_parts)[list(order)])
+
+        gidx = np.concatenate(grad_idx)
+        grad_sum = _summing_matrix(gidx, np.arange(len(gidx)), self.n_x)
+        grad = ca.mtimes(grad_sum, ca.vertcat(*grad_parts))
+
+        hrows, hcols = np.concatenate(hess_trip[0]), np.concatenate(hess_trip[1])
+        hsp_all, hmap = ca.Sparsity.triplet(self.n_x, self.n_x, hrows, hcols, True)
+        hmap = np.asarray(hmap, dtype=int)
+        hess_sum = _summing_matrix(hmap, np.arange(len(hmap)), hsp_all.nnz())
+        hess = ca.MX(hsp_all, ca.mtimes(hess_sum, hess_nz))
+
+        self.oracles = {
+            "jac_g": ca.Function("jac_g", [X, P], [G, jac], ["x", "p"], ["g", "jac_g_x"]),
+            "grad_f": ca.Function("grad_f", [X, P], [cost, grad], ["x", "p"], ["f", "grad_f_x"]),
+            "hess_lag": ca.Function(
+                "hess_lag",
+                [X, P, lam_f, lam_g],
+                [hess],
+                ["x", "p", "lam_f", "lam_g"],
+                ["triu_hess_gamma_x_x"],
+            ),
+        }
+        options = {"print_time": False, "ipopt": ipopt, **self.oracles}
+        self.solver = ca.nlpsol("to", "ipopt", {"x": X, "p": P, "f": cost, "g": G}, options)
+        self.build_time_s = time.perf_counter() - tic
+
+    def solve(
+        self, x0: np.ndarray, lbx: np.ndarray, ubx: np.ndarray, params: np.ndarray
+    ) -> NLPResult:
+        """Solve from ``x0``; ``params`` is (n_params, N). A failed solve is returned with
+        IPOPT's status, not raised."""
+        tic = time.perf_counter()
+        out = self.solver(
+            x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg, p=params.ravel(order="F")
+        )
+        elapsed = time.perf_counter() - tic
+        stats = self.solver.stats()
+        x = np.asarray(out["x"]).ravel()
+        g = np.asarray(out["g"]).ravel()
+        violation = max(
+            float(np.max(np.maximum(self.lbg - g, 0.0), initial=0.0)),
+            float(np.max(np.maximum(g - self.ubg, 0.0), initial=0.0)),
+            float(np.max(np.maximum(lbx - x, 0.0), initial=0.0)),
+            float(np.max(np.maximum(x - ubx, 0.0), initial=0.0)),
+        )
+        sys.stdout.flush()
+        return NLPResult(
+            status=str(stats["return_status"]),
+            success=bool(stats["success"]),
+            iterations=int(stats["iter_count"]),
+            x=x,
+            lam_g=np.asarray(out["lam_g"]).ravel(),
+            cost=float(out["f"]),
+            max_constraint_violation=violation,
+            solve_time_s=elapsed,
+        )
+
+
+def _summing_matrix(target: np.ndarray, source: np.ndarray, size: int) -> ca.DM:
+    """Constant 0/1 matrix S with S[target[i], source[i]] = 1: S @ values sums the values
+    that land on the same entry."""
+    mat = sps.csc_matrix(
+        (np.ones(len(target)), (target, source)), shape=(size, len(source))
+    )
+    mat.sum_duplicates()
+    return ca.DM(ca.Sparsity(size, len(source), mat.indptr, mat.indices), mat.data)

@@ -1,0 +1,204 @@
+"""The contact schedule of the TO, per node, from the task plan and the keyframes.
+
+Paper A fixes which contacts hold at each shooting node (Sec. IV): walking phases alternate
+single and double support, stance phases keep both feet down, and a hand touches the box
+only while it manipulates it. Keyframes sit at subtask boundaries (Sec. IV-C). Where the
+feet must move between two keyframes the schedule inserts steps; where they land is left
+to the TO (the walking costs of Table I and the keyframe foot cost (10) place them).
+
+A subtask becomes phases by its predicate:
+
+- ``walk``: steps to the keyframe stance.
+- ``pick``: steps if needed, ``reach`` (hands free), ``grasp`` (hands on the object while it
+  rests on its support; the keyframe), ``lift`` (the object carried).
+- ``place``: steps carrying the object, ``lower``, ``set`` (the object on its target
+  support, hands still on it; the keyframe).
+
+Other predicates (``step`` onto a box, ``push`` a trolley, ``grab`` a basket) need contact
+kinds that are not built yet and are refused with a clear error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from locoman.errors import ConfigError
+
+
+@dataclasses.dataclass(frozen=True)
+class ScheduleCfg:
+    """Node counts of the phases.
+
+    Attributes:
+        double_support_nodes: Both feet down between steps.
+        swing_nodes: One foot in the air per step.
+        step_length_m: Longest step the schedule plans for [m].
+        step_yaw_rad: Largest turn per step [rad].
+        step_min_m: Feet that must move less than this between keyframes do not step [m].
+        reach_nodes: Hands move to the object.
+        grasp_nodes: Hands on the object, the object still on its support.
+        lift_nodes: The object carried off its support.
+        lower_nodes: The object carried down towards its target.
+        set_nodes: The object on its target, hands still on it.
+    """
+
+    double_support_nodes: int = 3
+    swing_nodes: int = 8
+    step_length_m: float = 0.25
+    step_yaw_rad: float = 0.45
+    step_min_m: float = 0.15
+    reach_nodes: int = 8
+    grasp_nodes: int = 4
+    lift_nodes: int = 6
+    lower_nodes: int = 6
+    set_nodes: int = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class Phase:
+    """Consecutive nodes sharing one contact mode.
+
+    Attributes:
+        name: ``stance``, ``swing_left``, ``swing_right``, ``reach``, ``grasp``, ``lift``,
+            ``lower`` or ``set``.
+        subtask: Index of the plan's subtask.
+        nodes: Number of nodes.
+        feet: (left, right) in contact with the ground.
+        hands: (left, right) in contact with the object.
+        object_supported: The object rests on a support (a table).
+        keyframe: The phase's last node is its subtask's keyframe.
+    """
+
+    name: str
+    subtask: int
+    nodes: int
+    feet: tuple[bool, bool] = (True, True)
+    hands: tuple[bool, bool] = (False, False)
+    object_supported: bool = True
+    keyframe: bool = False
+
+    @property
+    def stance(self) -> bool:
+        """b_st of (8): both feet down."""
+        return all(self.feet)
+
+    @property
+    def carried(self) -> bool:
+        """The object moves with the hands, off its support."""
+        return any(self.hands) and not self.object_supported
+
+
+def step_count(
+    feet_from: np.ndarray, feet_to: np.ndarray, yaw_from: float, yaw_to: float, cfg: ScheduleCfg
+) -> int:
+    """Steps (even, so that both feet move) to go from one stance to another: enough that no
+    step is longer than ``step_length_m`` or turns more than ``step_yaw_rad``; none if the
+    feet move less than ``step_min_m`` and the base turns less than one step's turn.
+
+    Args:
+        feet_from, feet_to: (2, 2) left and right foot xy [m].
+        yaw_from, yaw_to: Base yaw [rad].
+    """
+    travel = float(np.max(np.linalg.norm(np.asarray(feet_to) - np.asarray(feet_from), axis=1)))
+    turn = abs(math.remainder(yaw_to - yaw_from, math.tau))
+    if travel < cfg.step_min_m and turn < cfg.step_yaw_rad:
+        return 0
+    steps = max(math.ceil(travel / cfg.step_length_m), math.ceil(turn / cfg.step_yaw_rad), 1)
+    return steps + steps % 2
+
+
+def _steps(subtask: int, steps: int, first_right: bool, cfg: ScheduleCfg, **mode) -> list[Phase]:
+    phases = []
+    for s in range(steps):
+        right = (s % 2 == 0) == first_right
+        feet = (True, False) if right else (False, True)
+        name = "swing_right" if right else "swing_left"
+        phases.append(Phase(name, subtask, cfg.swing_nodes, feet=feet, **mode))
+        phases.append(Phase("stance", subtask, cfg.double_support_nodes, **mode))
+    return phases
+
+
+def subtask_phases(
+    predicate: str,
+    subtask: int,
+    steps: int,
+    first_right: bool,
+    cfg: ScheduleCfg,
+) -> list[Phase]:
+    """Phases of one subtask (see the module's docstring)."""
+    if predicate == "walk":
+        phases = _steps(subtask, steps, first_right, cfg)
+        if not phases:
+            phases = [Phase("stance", subtask, cfg.double_support_nodes)]
+        last = phases[-1]
+        return [*phases[:-1], dataclasses.replace(last, keyframe=True)]
+    if predicate == "pick":
+        both = (True, True)
+        return [
+            *_steps(subtask, steps, first_right, cfg),
+            Phase("reach", subtask, cfg.reach_nodes),
+            Phase("grasp", subtask, cfg.grasp_nodes, hands=both, keyframe=True),
+            Phase("lift", subtask, cfg.lift_nodes, hands=both, object_supported=False),
+        ]
+    if predicate == "place":
+        both = (True, True)
+        carry = {"hands": both, "object_supported": False}
+        return [
+            *_steps(subtask, steps, first_right, cfg, **carry),
+            Phase("lower", subtask, cfg.lower_nodes, **carry),
+            Phase("set", subtask, cfg.set_nodes, hands=both, keyframe=True),
+        ]
+    raise ConfigError(
+        f"subtask {subtask} ({predicate!r}): the TO has contact schedules for 'walk', 'pick' "
+        "and 'place' only; stepping onto objects and pushing a trolley need the contact kinds "
+        "of the long-horizon scenarios, which are not built yet"
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Schedule:
+    """Per-node view of the phases, with a leading node for the initial state.
+
+    Attributes:
+        phases: In order; node 0 (the initial state) belongs to none.
+        phase_of: (N,) phase index per node, -1 for node 0.
+    """
+
+    phases: tuple[Phase, ...]
+    phase_of: np.ndarray
+
+    @classmethod
+    def from_phases(cls, phases: list[Phase]) -> Schedule:
+        index = [-1] + [i for i, phase in enumerate(phases) for _ in range(phase.nodes)]
+        return cls(tuple(phases), np.asarray(index, dtype=int))
+
+    @property
+    def nodes(self) -> int:
+        return len(self.phase_of)
+
+    def phase(self, node: int) -> Phase:
+        """The phase of a node; node 0 shares the first phase's mode (the robot at rest,
+        both feet down, the object untouched)."""
+        return self.phases[max(int(self.phase_of[node]), 0)]
+
+    def keyframe_nodes(self) -> dict[int, int]:
+        """Subtask -> its keyframe node (the last node of its keyframe phase)."""
+        out, node = {}, 0
+        for phase in self.phases:
+            node += phase.nodes
+            if phase.keyframe:
+                out[phase.subtask] = node
+        return out
+
+    def subtask_of(self, node: int) -> int:
+        return self.phase(node).subtask
+
+    def first_touch(self) -> int | None:
+        """First node at which a hand touches the object (from then on it is simulated)."""
+        for node in range(self.nodes):
+            if any(self.phase(node).hands):
+                return node
+        return None

@@ -1,0 +1,422 @@
+"""Paper A's whole-body TO of a scenario: schedule, parameters, bounds, the subtask-like warm
+start (Sec. IV-C.2), and the solve, over the stage functions of :mod:`locoman.to.problem`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from locoman.scene import g1
+from locoman.scene.rotations import matrix_to_rpy
+from locoman.to.costs import CostWeights
+from locoman.to.kinematics import SymbolicKinematics
+from locoman.to.layout import N_PARAMS, NQ, PARAMETERS, VARIABLES, WIDTH, ObjectModel
+from locoman.to.nlp import NLPResult, StageNLP
+from locoman.to.problem import FOOT_LINKS, ContactCfg, NodeMode, StageBuilder
+from locoman.to.schedule import Schedule, ScheduleCfg, step_count, subtask_phases
+
+GRAVITY = 9.81  # [m/s^2]
+
+
+@dataclasses.dataclass(frozen=True)
+class Keyframe:
+    """What the TO takes from one subtask's keyframe.
+
+    Attributes:
+        predicate: The subtask's verb (``walk``, ``pick``, ``place``).
+        q35: The retargeted configuration.
+        object_pose: (6,) the object's (p, rpy) in the keyframe [m, rad].
+        goal: (3,) object x, y [m] and yaw [rad] the subtask must reach, or None.
+    """
+
+    predicate: str
+    q35: np.ndarray
+    object_pose: np.ndarray
+    goal: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class TOInputs:
+    """A scenario, as the TO needs it.
+
+    Attributes:
+        q_start: (35,) the robot at rest at the start.
+        object_start: (6,) the object's (p, rpy) at the start.
+        obj: The manipulated object.
+        keyframes: One per subtask, in plan order.
+        hand_points: (2, 3) left and right hand contacts in the object frame [m].
+        hand_frames: (2, 3, 3) their contact frames in the object frame (z: outward normal).
+    """
+
+    q_start: np.ndarray
+    object_start: np.ndarray
+    obj: ObjectModel
+    keyframes: Sequence[Keyframe]
+    hand_points: np.ndarray
+    hand_frames: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverCfg:
+    """IPOPT and the time grid.
+
+    Attributes:
+        dt_bounds: Bounds of each time step [s].
+        max_iterations: IPOPT's max_iter.
+        tolerance: IPOPT's tol.
+        compile: Compile the stage derivatives to C (cached) instead of interpreting them.
+        print_level: IPOPT's print level (5: one line per iteration).
+        warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
+            every node starts at the initial state.
+    """
+
+    dt_bounds: tuple[float, float] = (0.02, 0.08)
+    max_iterations: int = 500
+    tolerance: float = 1e-6
+    compile: bool = True
+    print_level: int = 5
+    warm_start: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """The TO's answer, per node (N nodes; dt[k] leads from node k to k + 1).
+
+    Every array is in world axes and SI units; ``q`` and ``object_q`` are (p, rpy).
+    """
+
+    status: str
+    success: bool
+    iterations: int
+    solve_time_s: float
+    build_time_s: float
+    n_variables: int
+    n_constraints: int
+    max_constraint_violation: float
+    cost: float
+    q: np.ndarray  # (N, 35)
+    v: np.ndarray  # (N, 35)
+    foot_wrench: np.ndarray  # (N, 2, 6) force [N], moment [N m] at each sole centre
+    hand_wrench: np.ndarray  # (N, 2, 6) the object's wrench on each hand, at the contact
+    object_q: np.ndarray  # (N, 6)
+    object_v: np.ndarray  # (N, 6)
+    support_wrench: np.ndarray  # (N, 6) at the object's bottom centre
+    foot_slack: np.ndarray  # (N, 2) [m]
+    hand_slack: np.ndarray  # (N, 2, 3) [m]
+    dt: np.ndarray  # (N,) [s]; the last is unused
+    feet_contact: np.ndarray  # (N, 2) bool
+    hands_contact: np.ndarray  # (N, 2) bool
+    object_active: np.ndarray  # (N,) bool
+    object_supported: np.ndarray  # (N,) bool
+    phase: np.ndarray  # (N,) str
+    subtask: np.ndarray  # (N,) int
+    hand_points: np.ndarray  # (2, 3) hand contacts in the object frame [m]
+
+    @property
+    def time(self) -> np.ndarray:
+        """(N,) time of each node [s]."""
+        return np.r_[0.0, np.cumsum(self.dt[:-1])]
+
+
+def _yaw(q35: np.ndarray) -> float:
+    return float(q35[5])
+
+
+def sole_points(q35: np.ndarray) -> np.ndarray:
+    """(2, 3) left and right sole centres [m] at a configuration."""
+    model = g1.g1_pinocchio_model()
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, g1.q35_to_pin(q35))
+    centre = g1.foot_sole_corners()[FOOT_LINKS[0]].mean(axis=0)
+    return np.array(
+        [data.oMf[model.getFrameId(link)].act(centre) for link in FOOT_LINKS]
+    )
+
+
+def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
+    """Phases of every subtask; steps where the keyframes' feet move (Sec. IV)."""
+    phases = []
+    feet_before, yaw_before = sole_points(inputs.q_start)[:, :2], _yaw(inputs.q_start)
+    for i, kf in enumerate(inputs.keyframes):
+        feet = sole_points(kf.q35)[:, :2]
+        steps = step_count(feet_before, feet, yaw_before, _yaw(kf.q35), cfg)
+        # Lead with the foot on the side the robot moves or turns to.
+        heading = np.array([math.cos(yaw_before), math.sin(yaw_before)])
+        move = feet.mean(axis=0) - feet_before.mean(axis=0)
+        lateral = heading[0] * move[1] - heading[1] * move[0]
+        turn = math.remainder(_yaw(kf.q35) - yaw_before, math.tau)
+        first_right = (lateral + 0.3 * turn) < 0.0
+        phases += subtask_phases(kf.predicate, i, steps, first_right, cfg)
+        feet_before, yaw_before = feet, _yaw(kf.q35)
+    return Schedule.from_phases(phases)
+
+
+def node_modes(schedule: Schedule) -> list[NodeMode]:
+    """The contact mode of every node; the object is simulated from the first touch on."""
+    touch = schedule.first_touch()
+    modes = []
+    for n in range(schedule.nodes):
+        ph = schedule.phase(n)
+        active = touch is not None and n >= touch
+        supported = ph.object_supported or not active
+        modes.append(NodeMode(ph.feet, ph.hands if n > 0 else (False, False), active, supported))
+    return modes
+
+
+def _frames_columns(frames: np.ndarray) -> np.ndarray:
+    """(2, 3, 3) -> (18,), each matrix column-major as CasADi reshapes it."""
+    return np.concatenate([f.ravel(order="F") for f in frames])
+
+
+def parameters(
+    inputs: TOInputs, schedule: Schedule, weights: CostWeights, keyframe_costs: tuple[bool, bool]
+) -> np.ndarray:
+    """(N_PARAMS, N): references and switches per node.
+
+    The yaw reference goes linearly, over each subtask's nodes, from the previous keyframe's
+    yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes of each
+    subtask after its last step; ``keyframe_costs`` = (base, foot) switches them.
+    """
+    n = schedule.nodes
+    P = np.zeros((N_PARAMS, n))
+    kf_nodes = schedule.keyframe_nodes()
+    yaw_before = _yaw(inputs.q_start)
+    support_z = float(inputs.object_start[2])
+    for i, kf in enumerate(inputs.keyframes):
+        nodes = [k for k in range(1, n) if schedule.subtask_of(k) == i]
+        yaws = np.linspace(yaw_before, _yaw(kf.q35), len(nodes) + 1)[1:]
+        P[PARAMETERS["yaw_ref"].start, nodes] = yaws
+        if i == 0:
+            P[PARAMETERS["yaw_ref"].start, 0] = yaw_before
+        yaw_before = _yaw(kf.q35)
+        node = kf_nodes[i]
+        if keyframe_costs[0]:
+            P[PARAMETERS["kf_base_on"], node] = 1.0
+            P[PARAMETERS["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
+        if keyframe_costs[1]:
+            last_swing = max(
+                (k for k in nodes if not schedule.phase(k).stance), default=nodes[0] - 1
+            )
+            stance = [k for k in nodes if k > last_swing and schedule.phase(k).stance]
+            P[PARAMETERS["kf_foot_on"], stance] = 1.0
+            P[PARAMETERS["kf_foot"], stance] = sole_points(kf.q35)[:, :2].mean(axis=0)[:, None]
+        if kf.goal is not None:
+            P[PARAMETERS["goal"], n - 1] = kf.goal
+            P[PARAMETERS["goal_on"], n - 1] = 1.0
+            support_z = float(kf.object_pose[2])
+        for k in nodes:
+            P[PARAMETERS["support_z"], k] = (
+                support_z if schedule.phase(k).name == "set" else inputs.object_start[2]
+            )
+    P[PARAMETERS["support_z"], 0] = inputs.object_start[2]
+    P[PARAMETERS["hand_points"], :] = inputs.hand_points.ravel()[:, None]
+    P[PARAMETERS["hand_frames"], :] = _frames_columns(inputs.hand_frames)[:, None]
+    return P
+
+
+def bounds(
+    inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg
+) -> tuple[np.ndarray, np.ndarray]:
+    """Variable bounds (WIDTH, N): joint position and velocity limits, the initial state,
+    inactive contacts' wrenches and slacks at zero, the untouched object at rest."""
+    model = g1.g1_pinocchio_model()
+    n = schedule.nodes
+    lo, hi = np.full((WIDTH, n), -np.inf), np.full((WIDTH, n), np.inf)
+    q, v = VARIABLES["q"], VARIABLES["v"]
+    lo[q.start + 6 : q.stop], hi[q.start + 6 : q.stop] = (
+        model.lowerPositionLimit[7:, None],
+        model.upperPositionLimit[7:, None],
+    )
+    lo[v.start + 6 : v.stop], hi[v.start + 6 : v.stop] = (
+        -model.velocityLimit[6:, None],
+        model.velocityLimit[6:, None],
+    )
+    lo[q, 0] = hi[q, 0] = inputs.q_start
+    lo[v, 0] = hi[v, 0] = 0.0
+    dt = VARIABLES["dt"].start
+    lo[dt], hi[dt] = cfg.dt_bounds
+    lo[dt, -1] = hi[dt, -1] = cfg.dt_bounds[0]
+    rest = np.r_[0.0, 0.0, inputs.obj.mass * GRAVITY, 0.0, 0.0, 0.0]
+    for k, mode in enumerate(modes):
+        last = k == n - 1
+        for i in range(2):
+            foot = slice(VARIABLES["foot_wrench"].start + 6 * i, VARIABLES["foot_wrench"].start + 6 * i + 6)
+            hand = slice(VARIABLES["hand_wrench"].start + 6 * i, VARIABLES["hand_wrench"].start + 6 * i + 6)
+            if not mode.feet[i] or last:
+                lo[foot, k] = hi[foot, k] = 0.0
+            if not mode.hands[i] or last:
+                lo[hand, k] = hi[hand, k] = 0.0
+            if not mode.feet[i] or k == 0:
+                lo[VARIABLES["foot_slack"].start + i, k] = hi[VARIABLES["foot_slack"].start + i, k] = 0.0
+            if not mode.hands[i] or not mode.object_active:
+                s = VARIABLES["hand_slack"].start + 3 * i
+                lo[s : s + 3, k] = hi[s : s + 3, k] = 0.0
+        support = VARIABLES["support_wrench"]
+        if not mode.object_active:
+            lo[VARIABLES["object_q"], k] = hi[VARIABLES["object_q"], k] = inputs.object_start
+            lo[VARIABLES["object_v"], k] = hi[VARIABLES["object_v"], k] = 0.0
+            lo[support, k] = hi[support, k] = rest
+        elif not mode.object_supported or last:
+            lo[support, k] = hi[support, k] = 0.0
+        if not (mode.object_active and mode.object_supported):
+            s = VARIABLES["support_slack"].start
+            lo[s, k] = hi[s, k] = 0.0
+    return lo, hi
+
+
+def initial_guess(
+    inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg, robot_mass: float
+) -> np.ndarray:
+    """(WIDTH, N): Sec. IV-C.2's subtask-like warm start: each subtask's nodes at its
+    keyframe (robot and object), at rest, the weight shared by the feet in contact and the
+    carried object's weight by the hands."""
+    n = schedule.nodes
+    X = np.zeros((WIDTH, n))
+    X[VARIABLES["dt"]] = 0.5 * sum(cfg.dt_bounds)
+    for k in range(n):
+        mode = modes[k]
+        kf = inputs.keyframes[schedule.subtask_of(k)]
+        use_kf = cfg.warm_start and k > 0
+        X[VARIABLES["q"], k] = kf.q35 if use_kf else inputs.q_start
+        X[VARIABLES["object_q"], k] = (
+            kf.object_pose if (use_kf and mode.object_active) else inputs.object_start
+        )
+        weight = robot_mass * GRAVITY
+        if mode.carried:
+            weight += inputs.obj.mass * GRAVITY
+            for i in range(2):
+                s = VARIABLES["hand_wrench"].start + 6 * i
+                X[s + 2, k] = -0.5 * inputs.obj.mass * GRAVITY
+        elif mode.object_supported:
+            X[VARIABLES["support_wrench"].start + 2, k] = inputs.obj.mass * GRAVITY
+        down = [i for i in range(2) if mode.feet[i]]
+        for i in down:
+            X[VARIABLES["foot_wrench"].start + 6 * i + 2, k] = weight / len(down)
+    return X
+
+
+class TrajectoryOptimizer:
+    """The TO of one scenario, built once: new parameters (keyframe switches, weights of
+    the parameter vector) re-solve without rebuilding.
+
+    Args:
+        inputs: The scenario.
+        schedule_cfg, weights, contact, solver: Settings.
+        cache_dir: Where compiled derivatives are cached (``solver.compile``).
+    """
+
+    def __init__(
+        self,
+        inputs: TOInputs,
+        schedule_cfg: ScheduleCfg,
+        weights: CostWeights,
+        contact: ContactCfg,
+        solver: SolverCfg,
+        cache_dir: Path,
+    ) -> None:
+        from locoman.retarget.robot import contact_frames
+
+        self.inputs, self.cfg, self.weights = inputs, solver, weights
+        self.schedule = build_schedule(inputs, schedule_cfg)
+        self.modes = node_modes(self.schedule)
+        model = g1.g1_pinocchio_model()
+        self.kin = SymbolicKinematics(model)
+        frames = contact_frames()
+        corners = g1.foot_sole_corners()[FOOT_LINKS[0]]
+        sole_centre = corners.mean(axis=0)
+        sole_half = 0.5 * (corners.max(axis=0) - corners.min(axis=0))[:2]
+        palms = np.array([frames.palm["left_palm"], frames.palm["right_palm"]])
+        builder = StageBuilder(
+            self.kin, inputs.obj, sole_centre, sole_half, palms, frames.palm_radius, weights, contact
+        )
+        n = self.schedule.nodes
+        keys: dict[tuple, list[int]] = {}
+        for k in range(n - 1):
+            keys.setdefault((self.modes[k], self.modes[k + 1], k == n - 2), []).append(k)
+        groups = [builder.group(*key, np.array(stages)) for key, stages in keys.items()]
+        groups.append(builder.kinematics_group(np.arange(n)))
+        self.kinematics = builder.kinematics
+        ipopt = {
+            "max_iter": solver.max_iterations,
+            "tol": solver.tolerance,
+            "print_level": solver.print_level,
+            "print_frequency_iter": 1,
+            "sb": "yes",
+            "mu_strategy": "adaptive",
+            "fixed_variable_treatment": "make_parameter",
+        }
+        self.nlp = StageNLP(
+            WIDTH, n, N_PARAMS, groups, ipopt, cache_dir if solver.compile else None
+        )
+
+    def solve(self, keyframe_costs: tuple[bool, bool] = (True, True)) -> Trajectory:
+        """Solve; a failed solve is a trajectory with ``success`` False, not an exception."""
+        inputs, schedule, modes = self.inputs, self.schedule, self.modes
+        P = parameters(inputs, schedule, self.weights, keyframe_costs)
+        lo, hi = bounds(inputs, schedule, modes, self.cfg)
+        X0 = np.clip(initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass), lo, hi)
+        q, v = X0[VARIABLES["q"]], X0[VARIABLES["v"]]
+        X0[VARIABLES["kin"]] = np.asarray(self.kinematics.map(schedule.nodes)(q, v))
+        result = self.nlp.solve(X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), P)
+        return self._trajectory(result)
+
+    def _trajectory(self, result: NLPResult) -> Trajectory:
+        n = self.schedule.nodes
+        Z = result.x.reshape(n, WIDTH)
+
+        def part(name: str) -> np.ndarray:
+            return Z[:, VARIABLES[name]]
+
+        phases = [self.schedule.phase(k).name if k > 0 else "start" for k in range(n)]
+        return Trajectory(
+            status=result.status,
+            success=result.success,
+            iterations=result.iterations,
+            solve_time_s=result.solve_time_s,
+            build_time_s=self.nlp.build_time_s,
+            n_variables=self.nlp.n_x,
+            n_constraints=self.nlp.n_g,
+            max_constraint_violation=result.max_constraint_violation,
+            cost=result.cost,
+            q=part("q"),
+            v=part("v"),
+            foot_wrench=part("foot_wrench").reshape(n, 2, 6),
+            hand_wrench=part("hand_wrench").reshape(n, 2, 6),
+            object_q=part("object_q"),
+            object_v=part("object_v"),
+            support_wrench=part("support_wrench"),
+            foot_slack=part("foot_slack"),
+            hand_slack=part("hand_slack").reshape(n, 2, 3),
+            dt=part("dt")[:, 0],
+            feet_contact=np.array([m.feet for m in self.modes]),
+            hands_contact=np.array([m.hands for m in self.modes]),
+            object_active=np.array([m.object_active for m in self.modes]),
+            object_supported=np.array([m.object_supported for m in self.modes]),
+            phase=np.array(phases),
+            subtask=np.array([self.schedule.subtask_of(k) for k in range(n)]),
+            hand_points=self.inputs.hand_points.copy(),
+        )
+
+
+def object_pose(T: np.ndarray) -> np.ndarray:
+    """(6,) (p, rpy) of a 4x4 transform."""
+    return np.r_[T[:3, 3], matrix_to_rpy(T[:3, :3])]
+
+
+__all__ = [
+    "Keyframe",
+    "SolverCfg",
+    "TOInputs",
+    "Trajectory",
+    "TrajectoryOptimizer",
+    "build_schedule",
+    "node_modes",
+    "object_pose",
+    "NQ",
+]
