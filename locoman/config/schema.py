@@ -15,6 +15,7 @@ from locoman.config.contacts import ContactsCfg
 from locoman.config.perception import PerceptionCfg
 from locoman.config.retarget import RetargetCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
+from locoman.config.to import EvaluateCfg, SolveCfg
 
 
 @dataclass
@@ -206,6 +207,8 @@ class RootCfg:
     perception: PerceptionCfg = field(default_factory=PerceptionCfg)
     contacts: ContactsCfg = field(default_factory=ContactsCfg)
     retarget: RetargetCfg = field(default_factory=RetargetCfg)
+    solve: SolveCfg = field(default_factory=SolveCfg)
+    evaluate: EvaluateCfg = field(default_factory=EvaluateCfg)
 
     def check(self) -> list[tuple[str, str]]:
         errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]
@@ -214,6 +217,9 @@ class RootCfg:
         for name in self.perception.scenarios:
             if name not in self.scenarios or self.scenarios[name].robot != "g1":
                 errors.append(("perception.scenarios", f"{name!r} is not a G1 scenario"))
+        for name in self.solve.scenarios:
+            if name not in self.perception.scenarios:
+                errors.append(("solve.scenarios", f"{name!r} is not a perception scenario"))
         return errors
 
 

@@ -10,7 +10,7 @@ import dataclasses
 
 import casadi as ca
 
-from locoman.scene.g1 import G1_JOINT_NAMES
+from locoman.scene.g1 import G1_JOINT_NAMES, STANDING_JOINTS
 
 LEGS = tuple(
     k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("hip", "knee", "ankle"))
@@ -19,12 +19,17 @@ ARMS = tuple(
     k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("shoulder", "elbow", "wrist"))
 )
 
+# The arms' nominal angles: the G1's standing posture (elbows bent, hands off the hips).
+# Table I regularises q_arm without naming a reference; at zero the G1's elbow capsules
+# sit in its pelvis.
+ARM_NOMINAL = [STANDING_JOINTS.get(G1_JOINT_NAMES[k], 0.0) for k in ARMS]
+
 
 def _joint(name: str) -> int:
     return 6 + G1_JOINT_NAMES.index(name)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass
 class CostWeights:
     """Table I (stance, walking, regularisation, slack) and eqs. (9), (10).
 
@@ -44,7 +49,7 @@ class CostWeights:
         base_angular_velocity: [-].
         leg_velocity: [-].
         arm_velocity: [-].
-        arm_angle: Arm joint angles towards zero [-].
+        arm_angle: Arm joint angles towards :data:`ARM_NOMINAL` [-].
         base_height: Base height towards ``base_height_m`` [-].
         base_height_m: [m].
         timestep: Time step towards ``timestep_s`` [-].
@@ -75,9 +80,20 @@ class CostWeights:
     timestep: float = 1e2
     timestep_s: float = 2e-2
     slack: float = 1e5
-    keyframe_base: tuple[float, float] = (1e2, 1e1)
+    keyframe_base: list[float] = dataclasses.field(default_factory=lambda: [1e2, 1e1])
     keyframe_foot: float = 5e2
     object_goal: float = 1e4
+
+    def check(self) -> list[tuple[str, str]]:
+        values = [v for v in dataclasses.asdict(self).values() if isinstance(v, float)]
+        errors = []
+        if min(values) < 0.0 or min(self.keyframe_base) < 0.0:
+            errors.append(("slack", "every weight must be >= 0"))
+        if len(self.keyframe_base) != 2:
+            errors.append(("keyframe_base", "needs two weights: base height, orientation"))
+        if self.timestep_s <= 0.0:
+            errors.append(("timestep_s", "must be > 0 s"))
+        return errors
 
 
 def _hip(side: str, axis: str) -> int:
@@ -137,7 +153,7 @@ def regularization_cost(
         + w.base_angular_velocity * ca.sumsqr(base_omega)
         + w.leg_velocity * ca.sumsqr(v[legs])
         + w.arm_velocity * ca.sumsqr(v[arms])
-        + w.arm_angle * ca.sumsqr(q[arms])
+        + w.arm_angle * ca.sumsqr(q[arms] - ca.DM(ARM_NOMINAL))
         + w.base_height * (q[2] - w.base_height_m) ** 2
         + w.timestep * (dt - w.timestep_s) ** 2
     )

@@ -93,7 +93,7 @@ class NodeMode:
         return any(self.hands) and not self.object_supported
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass
 class ContactCfg:
     """Contact parameters of the TO.
 
@@ -107,7 +107,15 @@ class ContactCfg:
     floor_friction: float = 0.8
     stiffness: float = 50.0
     prehensile: bool = False
-    palm_half_extents_m: tuple[float, float] = (0.04, 0.03)
+    palm_half_extents_m: list[float] = dataclasses.field(default_factory=lambda: [0.04, 0.03])
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.floor_friction <= 0.0 or self.stiffness <= 0.0:
+            errors.append(("stiffness", "friction and stiffness must be > 0"))
+        if len(self.palm_half_extents_m) != 2 or min(self.palm_half_extents_m) <= 0.0:
+            errors.append(("palm_half_extents_m", "needs two half sizes > 0 m"))
+        return errors
 
 
 def _var(z: ca.SX, name: str) -> ca.SX:
@@ -260,7 +268,7 @@ class StageBuilder:
             rows += [ho1 - ho - wrench_o * dt, qo1 - qo - vo1 * dt]
         return rows
 
-    def _contacts(self, z1, p1, mode: NodeMode, mode_next: NodeMode) -> list[ca.SX]:
+    def _contacts(self, z, z1, p1, mode: NodeMode, mode_next: NodeMode) -> list[ca.SX]:
         """Equalities of node k + 1's contacts."""
         k_z = self.contact.stiffness
         rows = []
@@ -268,7 +276,9 @@ class StageBuilder:
             if mode_next.feet[i]:
                 r, r_dot, R, w = self._foot(z1, i)
                 surface = _par(p1, "foot_surface_z")[i]
-                rows.append(patch_contact(r, r_dot, R, surface, k_z, _var(z1, "foot_slack")[i]))
+                slack = _var(z1, "foot_slack")[i]
+                before = self._foot(z, i)[0] if mode.feet[i] else None
+                rows.append(patch_contact(r, r_dot, R, surface, k_z, slack, before))
                 if not mode.feet[i]:
                     rows.append(no_rolling(w))  # (2d) at touchdown
         if not mode_next.object_active:
@@ -287,7 +297,9 @@ class StageBuilder:
         if mode_next.object_supported:
             vo1 = _var(z1, "object_v")
             surface = _par(p1, "support_z")
-            rows.append(patch_contact(p_o, vo1[0:3], R_o, surface, k_z, _var(z1, "support_slack")))
+            slack = _var(z1, "support_slack")
+            before = _var(z, "object_q")[0:3] if mode.object_supported else None
+            rows.append(patch_contact(p_o, vo1[0:3], R_o, surface, k_z, slack, before))
             if not mode.object_supported:
                 rows.append(no_rolling(w_o))
         return rows
@@ -353,7 +365,7 @@ class StageBuilder:
     ) -> tuple[ca.Function, np.ndarray, np.ndarray]:
         z, z1 = ca.SX.sym("z", WIDTH), ca.SX.sym("z1", WIDTH)
         p, p1 = ca.SX.sym("p", N_PARAMS), ca.SX.sym("p1", N_PARAMS)
-        equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(z1, p1, mode, mode_next)
+        equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(z, z1, p1, mode, mode_next)
         inequalities = self._cones(z, p, mode)
         eq = ca.vertcat(*equalities)
         ineq = ca.vertcat(*inequalities) if inequalities else ca.SX(0, 1)

@@ -28,7 +28,7 @@ import numpy as np
 from locoman.errors import ConfigError
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass
 class ScheduleCfg:
     """Node counts of the phases.
 
@@ -55,6 +55,13 @@ class ScheduleCfg:
     lift_nodes: int = 6
     lower_nodes: int = 6
     set_nodes: int = 4
+
+    def check(self) -> list[tuple[str, str]]:
+        counts = dataclasses.asdict(self)
+        errors = [(k, "must be >= 1") for k, v in counts.items() if k.endswith("_nodes") and v < 1]
+        if min(self.step_length_m, self.step_yaw_rad) <= 0.0:
+            errors.append(("step_length_m", "step length and turn must be > 0"))
+        return errors
 
 
 @dataclasses.dataclass(frozen=True)

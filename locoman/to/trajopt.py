@@ -62,7 +62,7 @@ class TOInputs:
     hand_frames: np.ndarray
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass
 class SolverCfg:
     """IPOPT and the time grid.
 
@@ -70,18 +70,29 @@ class SolverCfg:
         dt_bounds: Bounds of each time step [s].
         max_iterations: IPOPT's max_iter.
         tolerance: IPOPT's tol.
-        compile: Compile the stage derivatives to C (cached) instead of interpreting them.
-        print_level: IPOPT's print level (5: one line per iteration).
+        compile: Compile the kinematics' derivatives to C (cached by their hash) instead of
+            interpreting them: about 45 s once, then several times faster per iteration.
+        print_level: IPOPT's print level (5: one line per iteration, the progress).
         warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
             every node starts at the initial state.
     """
 
-    dt_bounds: tuple[float, float] = (0.02, 0.08)
+    dt_bounds: list[float] = dataclasses.field(default_factory=lambda: [0.02, 0.08])
     max_iterations: int = 500
     tolerance: float = 1e-6
     compile: bool = True
     print_level: int = 5
     warm_start: bool = True
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if len(self.dt_bounds) != 2 or not 0.0 < self.dt_bounds[0] <= self.dt_bounds[1]:
+            errors.append(("dt_bounds", "needs [lower, upper] with 0 < lower <= upper [s]"))
+        if self.max_iterations < 1 or self.tolerance <= 0.0:
+            errors.append(("max_iterations", "needs max_iterations >= 1 and tolerance > 0"))
+        if not 0 <= self.print_level <= 12:
+            errors.append(("print_level", "IPOPT's print level is 0..12"))
+        return errors
 
 
 @dataclasses.dataclass(frozen=True)
@@ -331,6 +342,7 @@ class TrajectoryOptimizer:
         corners = g1.foot_sole_corners()[FOOT_LINKS[0]]
         sole_centre = corners.mean(axis=0)
         sole_half = 0.5 * (corners.max(axis=0) - corners.min(axis=0))[:2]
+        self.sole_half = sole_half
         palms = np.array([frames.palm["left_palm"], frames.palm["right_palm"]])
         builder = StageBuilder(
             self.kin, inputs.obj, sole_centre, sole_half, palms, frames.palm_radius, weights, contact

@@ -1,0 +1,1 @@
+"""MuJoCo evaluation of solved trajectories (paper A, Sec. V)."""

@@ -1,0 +1,123 @@
+"""Stage ``evaluate`` for one scenario: replay the TO's trajectory in MuJoCo and check it.
+
+Layout under ``data/<scenario>/evaluate/``::
+
+    metrics.json              penetration, residuals, friction, slip, goal, success
+    plots/penetration.csv     total penetration per node (paper A, Fig. 5), for dvc plots
+    plots/filmstrip.png       the motion, a few nodes side by side
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import cv2
+import mujoco
+import numpy as np
+
+from locoman.artifacts import read_npz, write_json_atomic, write_png, write_text_atomic
+from locoman.artifacts.pictures import fit_tile
+from locoman.config.to import EvaluateCfg
+from locoman.scene import g1
+from locoman.scene.io import load_objects, load_scene_model
+from locoman.sim.evaluate import (
+    dynamics_residuals,
+    friction_violation,
+    penetrations,
+    scene_qpos,
+    stance_slip,
+)
+from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
+from locoman.to.layout import ObjectModel
+
+TILE = 320
+
+
+def filmstrip(
+    model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int
+) -> np.ndarray:
+    """Renders of evenly spaced nodes, two rows, each seen from the robot's front left."""
+    data = mujoco.MjData(model)
+    option = mujoco.MjvOption()
+    option.geomgroup[:] = 1
+    option.geomgroup[g1.COLLISION_GROUP] = 0
+    nodes = np.linspace(0, len(traj["q"]) - 1, frames).round().astype(int)
+    time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
+    tiles = []
+    with mujoco.Renderer(model, height=TILE, width=TILE) as renderer:
+        for k in nodes:
+            data.qpos[:] = scene_qpos(model, traj["q"][k], str(traj["object_name"]), traj["object_q"][k])
+            mujoco.mj_forward(model, data)
+            cam = mujoco.MjvCamera()
+            cam.lookat[:] = traj["q"][k, :3] + np.array([0.0, 0.0, -0.2])
+            cam.distance, cam.elevation = 3.0, -20.0
+            cam.azimuth = float(np.degrees(traj["q"][k, 5])) + 180.0 - 50.0
+            renderer.update_scene(data, camera=cam, scene_option=option)
+            tile = fit_tile(renderer.render().copy(), TILE)[0]
+            label = f"t={time[k]:.2f}s {traj['phase'][k]}"
+            cv2.putText(tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+            tiles.append(tile)
+    while len(tiles) % 2:
+        tiles.append(np.full_like(tiles[0], 255))
+    half = len(tiles) // 2
+    return np.vstack([np.hstack(tiles[:half]), np.hstack(tiles[half:])]) if half else tiles[0]
+
+
+def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: EvaluateCfg) -> dict:
+    """Replay, check, and write the metrics and plots; returns the metrics."""
+    traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
+    model = load_scene_model(scene_dir)
+    name = str(traj["object_name"])
+    spec = load_objects(scene_dir)[name]
+    obj = ObjectModel.box(name, np.array(spec["size_m"]), spec["mass_kg"], spec["friction"])
+    sole_centre = g1.foot_sole_corners()["left_ankle_roll_link"].mean(axis=0)
+    per_node, deepest = penetrations(model, traj["q"], name, traj["object_q"])
+    residuals = dynamics_residuals(traj, obj, sole_centre)
+    friction = friction_violation(traj, sole_centre)
+    slip = stance_slip(traj, sole_centre)
+    goal = traj["object_goal"]
+    final = traj["object_q"][-1]
+    goal_error = float(np.linalg.norm(final[:2] - goal[:2])) if np.all(np.isfinite(goal)) else 0.0
+    avg = float(per_node.sum() / len(per_node))
+    worst = int(np.argmax(per_node))
+    metrics = {
+        "solve_status": str(traj["status"]),
+        "avg_penetration_m": avg,
+        "max_penetration_m": float(per_node.max()),
+        "max_penetration_node": worst,
+        "max_penetration_pair": list(deepest[worst][:2]),
+        "dynamics_residual_max": residuals.max,
+        "dynamics_residuals": {
+            "robot_momentum": residuals.robot_momentum,
+            "robot_configuration": residuals.robot_configuration,
+            "object_momentum": residuals.object_momentum,
+            "object_configuration": residuals.object_configuration,
+        },
+        "friction_cone_violation_max": friction,
+        "stance_foot_slip_max_m": slip,
+        "object_goal_error_m": goal_error,
+        "object_goal_yaw_error_rad": float(abs(np.remainder(final[5] - goal[2] + np.pi, 2 * np.pi) - np.pi))
+        if np.all(np.isfinite(goal))
+        else 0.0,
+        "duration_s": float(traj["dt"][:-1].sum()),
+    }
+    metrics["success"] = bool(
+        bool(traj["success"])
+        and residuals.max <= cfg.dynamics_tol
+        and friction <= cfg.friction_tol
+        and slip <= cfg.slip_tol_m
+        and avg <= cfg.penetration_tol_m
+        and goal_error <= cfg.goal_tol_m
+    )
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["node", "time_s", "penetration_m"])
+    time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
+    for k, (t, p) in enumerate(zip(time, per_node, strict=True)):
+        writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
+    write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
+    write_png(out_dir / "plots" / "filmstrip.png", filmstrip(model, traj, cfg.filmstrip_frames))
+    write_json_atomic(out_dir / "metrics.json", metrics)
+    return metrics

@@ -1,0 +1,23 @@
+"""Stage `evaluate`: MuJoCo replay of the TO's trajectory, penetration and independent checks.
+
+Usage: python stages/evaluate.py <scenario>   (reads params.yaml, data/<scenario>/scene/ and
+solve/, writes data/<scenario>/evaluate/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.sim.pipeline import evaluate_scenario
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    root = DATA_DIR / scenario
+    evaluate_scenario(root / "scene", root / "solve", stage_dir(scenario, "evaluate"), cfg.evaluate)
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])

@@ -1,0 +1,25 @@
+"""Stage `solve`: paper A's whole-body trajectory optimisation of one scenario.
+
+Usage: python stages/solve.py <scenario>   (reads params.yaml, data/<scenario>/scene/,
+contacts/ and retarget/, writes data/<scenario>/solve/)
+"""
+
+from __future__ import annotations
+
+import sys
+
+from locoman.config import load_params
+from locoman.stage import DATA_DIR, run_stage, stage_dir
+from locoman.to.pipeline import solve_scenario
+
+
+def main(scenario: str) -> None:
+    cfg = load_params()
+    root = DATA_DIR / scenario
+    solve_scenario(
+        root / "scene", root / "contacts", root / "retarget", stage_dir(scenario, "solve"), cfg.solve
+    )
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])
