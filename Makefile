@@ -39,7 +39,8 @@ bench: setup
 	$(BIN)/python benchmarks/perception.py
 	$(BIN)/dvc repro retarget
 	$(BIN)/python benchmarks/retarget_speed.py
-	$(BIN)/python benchmarks/to_stance.py
+	$(BIN)/dvc repro solve
+	$(BIN)/python benchmarks/to_tiny.py
 
 # Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
 params: setup

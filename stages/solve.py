@@ -17,7 +17,11 @@ def main(scenario: str) -> None:
     cfg = load_params()
     root = DATA_DIR / scenario
     solve_scenario(
-        root / "scene", root / "contacts", root / "retarget", stage_dir(scenario, "solve"), cfg.solve
+        root / "scene",
+        root / "contacts",
+        root / "retarget",
+        stage_dir(scenario, "solve"),
+        cfg.solve,
     )
 
 

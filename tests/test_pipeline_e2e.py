@@ -70,7 +70,7 @@ def test_bad_params_fail_at_start_up_naming_the_key(workdir):
 
 def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     dvc = [sys.executable, "-m", "dvc"]
-    first = _run([*dvc, "repro", "retarget@tiny"], workdir)
+    first = _run([*dvc, "repro", "evaluate@tiny"], workdir)
     assert first.returncode == 0, first.stderr
     root = workdir / "data" / "tiny"
     plan = json.loads((root / "scene" / "plan.json").read_text())
@@ -105,6 +105,18 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     assert retarget["joint_limit_violation_max_rad"] == 0.0
     assert retarget["unreachable_contacts"] == 0
     assert retarget["hand_contact_residual_max_m"] <= 0.005
-    second = _run([*dvc, "repro", "retarget@tiny"], workdir)
+    solve = json.loads((root / "solve" / "metrics.json").read_text())
+    assert solve["status"] == "Solve_Succeeded", solve
+    assert solve["max_constraint_violation"] <= 1e-6
+    steps = read_json_messages(root / "solve" / "trajectory.mcap", "/tf")
+    assert len(steps) == solve["nodes"]
+    evaluate = json.loads((root / "evaluate" / "metrics.json").read_text())
+    assert evaluate["dynamics_residual_max"] <= 1e-6
+    assert evaluate["friction_cone_violation_max"] <= 1e-6
+    assert evaluate["stance_foot_slip_max_m"] <= 1e-3
+    assert evaluate["object_goal_error_m"] <= 0.02
+    assert evaluate["avg_penetration_m"] >= 0.0
+    assert (root / "evaluate" / "plots" / "filmstrip.png").is_file()
+    second = _run([*dvc, "repro", "evaluate@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout

@@ -59,15 +59,23 @@ def test_assembled_derivatives_match_casadi(compiled: bool, tmp_path) -> None:
     lfv, lgv = 0.7, rng.normal(size=g.numel())
     ref_jac = ca.Function("j", [x, p], [ca.jacobian(g, x)])(xv, pv)
     ref_grad = ca.Function("gr", [x, p], [ca.gradient(f, x)])(xv, pv)
-    ref_hess = ca.Function("h", [x, p, lam_f, lam_g], [ca.hessian(lam_f * f + ca.dot(lam_g, g), x)[0]])(
-        xv, pv, lfv, lgv
-    )
+    ref_hess = ca.Function(
+        "h", [x, p, lam_f, lam_g], [ca.hessian(lam_f * f + ca.dot(lam_g, g), x)[0]]
+    )(xv, pv, lfv, lgv)
     g_val, jac = nlp.oracles["jac_g"](xv, pv)
     f_val, grad = nlp.oracles["grad_f"](xv, pv)
     hess = nlp.oracles["hess_lag"](xv, pv, lfv, lgv)
-    np.testing.assert_allclose(np.asarray(g_val).ravel(), np.asarray(ca.Function("g", [x, p], [g])(xv, pv)).ravel(), atol=1e-12)
-    np.testing.assert_allclose(float(f_val), float(ca.Function("f", [x, p], [f])(xv, pv)), atol=1e-12)
-    np.testing.assert_allclose(np.asarray(ca.densify(jac)), np.asarray(ca.densify(ref_jac)), atol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(g_val).ravel(),
+        np.asarray(ca.Function("g", [x, p], [g])(xv, pv)).ravel(),
+        atol=1e-12,
+    )
+    np.testing.assert_allclose(
+        float(f_val), float(ca.Function("f", [x, p], [f])(xv, pv)), atol=1e-12
+    )
+    np.testing.assert_allclose(
+        np.asarray(ca.densify(jac)), np.asarray(ca.densify(ref_jac)), atol=1e-12
+    )
     np.testing.assert_allclose(np.asarray(grad).ravel(), np.asarray(ref_grad).ravel(), atol=1e-12)
     np.testing.assert_allclose(
         np.asarray(ca.densify(hess)), np.triu(np.asarray(ca.densify(ref_hess))), atol=1e-12

@@ -35,9 +35,7 @@ from locoman.to.layout import ObjectModel
 TILE = 320
 
 
-def filmstrip(
-    model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int
-) -> np.ndarray:
+def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -> np.ndarray:
     """Renders of evenly spaced nodes, two rows, each seen from the robot's front left."""
     data = mujoco.MjData(model)
     option = mujoco.MjvOption()
@@ -48,7 +46,9 @@ def filmstrip(
     tiles = []
     with mujoco.Renderer(model, height=TILE, width=TILE) as renderer:
         for k in nodes:
-            data.qpos[:] = scene_qpos(model, traj["q"][k], str(traj["object_name"]), traj["object_q"][k])
+            data.qpos[:] = scene_qpos(
+                model, traj["q"][k], str(traj["object_name"]), traj["object_q"][k]
+            )
             mujoco.mj_forward(model, data)
             cam = mujoco.MjvCamera()
             cam.lookat[:] = traj["q"][k, :3] + np.array([0.0, 0.0, -0.2])
@@ -57,7 +57,9 @@ def filmstrip(
             renderer.update_scene(data, camera=cam, scene_option=option)
             tile = fit_tile(renderer.render().copy(), TILE)[0]
             label = f"t={time[k]:.2f}s {traj['phase'][k]}"
-            cv2.putText(tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+            cv2.putText(
+                tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA
+            )
             tiles.append(tile)
     while len(tiles) % 2:
         tiles.append(np.full_like(tiles[0], 255))
@@ -98,7 +100,9 @@ def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Eval
         "friction_cone_violation_max": friction,
         "stance_foot_slip_max_m": slip,
         "object_goal_error_m": goal_error,
-        "object_goal_yaw_error_rad": float(abs(np.remainder(final[5] - goal[2] + np.pi, 2 * np.pi) - np.pi))
+        "object_goal_yaw_error_rad": float(
+            abs(np.remainder(final[5] - goal[2] + np.pi, 2 * np.pi) - np.pi)
+        )
         if np.all(np.isfinite(goal))
         else 0.0,
         "duration_s": float(traj["dt"][:-1].sum()),

@@ -59,6 +59,10 @@ class CostWeights:
         keyframe_foot: (10): feet midpoint at a keyframe's stance [-].
         object_goal: Object position (xy) and yaw at the plan's target, last node; not in
             the paper, which states the target without its cost [-].
+        object_upright: Object roll and pitch while it moves (ours) [-].
+        collision: Penalty (12) between the robot's body points and the object [-].
+        collision_scale: Each ellipsoid's semi-axes: the object's half sizes plus the
+            point's radius, times this [-].
     """
 
     com_over_feet: float = 5e2
@@ -83,6 +87,9 @@ class CostWeights:
     keyframe_base: list[float] = dataclasses.field(default_factory=lambda: [1e2, 1e1])
     keyframe_foot: float = 5e2
     object_goal: float = 1e4
+    object_upright: float = 1e2
+    collision: float = 1e3
+    collision_scale: float = 1.2
 
     def check(self) -> list[tuple[str, str]]:
         values = [v for v in dataclasses.asdict(self).values() if isinstance(v, float)]
@@ -133,9 +140,7 @@ def walking_cost(
     """L_wk of Table I: one foot in the air, ``swing_height`` [m] above the surface it
     left (None: no swing foot)."""
     roll = ca.vertcat(q[_hip("left", "roll")], q[_hip("right", "roll")])
-    cost = w.leg_roll * ca.sumsqr(roll) + w.base_pose_walking * (
-        q[4] ** 2 + (q[5] - yaw_ref) ** 2
-    )
+    cost = w.leg_roll * ca.sumsqr(roll) + w.base_pose_walking * (q[4] ** 2 + (q[5] - yaw_ref) ** 2)
     if swing_height is not None:
         cost += w.foot_clearance * (swing_height - w.clearance_m) ** 2
     return cost
@@ -168,6 +173,14 @@ def keyframe_base_cost(w: CostWeights, q: ca.SX, q_keyframe: ca.SX) -> ca.SX:
 def object_goal_cost(w: CostWeights, q_object: ca.SX, goal: ca.SX) -> ca.SX:
     """The object at its target: position xy [m] and yaw [rad] (goal = (x, y, yaw))."""
     return w.object_goal * (ca.sumsqr(q_object[0:2] - goal[0:2]) + (q_object[5] - goal[2]) ** 2)
+
+
+def penetration_penalty(w: CostWeights, point: ca.SX, centre: ca.SX, R: ca.SX, semi_axes) -> ca.SX:
+    """(12): p^2 where the scaled penetration p = d^2 - 1 < 0, d the point's scaled distance
+    from the ellipsoid's centre (semi-axes [m] in frame R), 0 outside."""
+    local = (R.T @ (point - centre)) / ca.DM(semi_axes)
+    p = ca.sumsqr(local) - 1.0
+    return w.collision * ca.fmin(p, 0.0) ** 2
 
 
 def keyframe_foot_cost(w: CostWeights, r_lf: ca.SX, r_rf: ca.SX, r_des: ca.SX) -> ca.SX:

@@ -28,9 +28,25 @@ KINEMATICS, N_KIN = _slices(
     {
         "h": 6,
         "com": 3,
-        **{f"{foot}_{q}": n for foot in FEET for q, n in (("r", 3), ("r_dot", 3), ("R", 9), ("w", 3))},
+        **{
+            f"{foot}_{q}": n
+            for foot in FEET
+            for q, n in (("r", 3), ("r_dot", 3), ("R", 9), ("w", 3))
+        },
         **{f"{hand}_{q}": n for hand in HANDS for q, n in (("r", 3), ("R", 9), ("w", 3))},
+        "body_points": 3 * 6,
     }
+)
+
+# Points on the robot kept out of the carried object by the penalty (12), with the radius
+# of the collision capsule around each [m]: link, offset in the link frame.
+BODY_POINTS = (
+    ("pelvis", (0.0, 0.0, -0.07), 0.09),
+    ("torso_link", (0.0, 0.0, 0.15), 0.12),
+    ("left_hip_yaw_link", (-0.035, 0.0, -0.1), 0.07),
+    ("right_hip_yaw_link", (-0.035, 0.0, -0.1), 0.07),
+    ("left_knee_link", (0.01, 0.0, -0.14), 0.065),
+    ("right_knee_link", (0.01, 0.0, -0.14), 0.065),
 )
 
 # One node's decision variables: robot q, v; per foot and hand a force [N] and moment [N m]

@@ -165,7 +165,12 @@ class StageNLP:
         derivs = [_derivatives(g, width) for g in self.groups]
         functions = [f for fns, _ in derivs for f in fns]
         if cache_dir is not None:
-            heavy = [f for g, (fns, _) in zip(self.groups, derivs, strict=True) if g.span == 1 for f in fns]
+            heavy = [
+                f
+                for g, (fns, _) in zip(self.groups, derivs, strict=True)
+                if g.span == 1
+                for f in fns
+            ]
             loaded = _compile(heavy, cache_dir) if heavy else {}
             # The NLP's own f and g stay interpreted: CasADi differentiates them once when
             # it sets IPOPT up, and a compiled function has no derivatives to offer.
@@ -284,8 +289,6 @@ class StageNLP:
 def _summing_matrix(target: np.ndarray, source: np.ndarray, size: int) -> ca.DM:
     """Constant 0/1 matrix S with S[target[i], source[i]] = 1: S @ values sums the values
     that land on the same entry."""
-    mat = sps.csc_matrix(
-        (np.ones(len(target)), (target, source)), shape=(size, len(source))
-    )
+    mat = sps.csc_matrix((np.ones(len(target)), (target, source)), shape=(size, len(source)))
     mat.sum_duplicates()
     return ca.DM(ca.Sparsity(size, len(source), mat.indptr, mat.indices), mat.data)

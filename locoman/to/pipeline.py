@@ -71,7 +71,9 @@ def load_inputs(scene_dir: Path, contacts_dir: Path, retarget_dir: Path) -> TOIn
         goal = None
         if sub["target"] is not None:
             goal = np.r_[sub["target"]["pos_m"][:2], sub["target"]["yaw_rad"]]
-        keyframes.append(Keyframe(sub["predicate"], kf["q35"], object_pose(kf["T_world_object"]), goal))
+        keyframes.append(
+            Keyframe(sub["predicate"], kf["q35"], object_pose(kf["T_world_object"]), goal)
+        )
     first = next(s for s in plan["subtasks"] if s["object"] == name)
     contacts = read_npz(contact_file(contacts_dir, first["index"]), CONTACTS)
     effectors = [str(e) for e in contacts["effectors"]]
@@ -117,8 +119,11 @@ def solve_scenario(
         inputs, cfg.schedule, cfg.weights, cfg.contact, cfg.solver, Path(cfg.cache_dir)
     )
     n = optimizer.schedule.nodes
-    print(f"[solve] {n} nodes, {optimizer.nlp.n_x} variables, {optimizer.nlp.n_g} constraints, "
-          f"built in {optimizer.nlp.build_time_s:.1f} s", flush=True)
+    print(
+        f"[solve] {n} nodes, {optimizer.nlp.n_x} variables, {optimizer.nlp.n_g} constraints, "
+        f"built in {optimizer.nlp.build_time_s:.1f} s",
+        flush=True,
+    )
     traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
     goal = next((kf.goal for kf in reversed(inputs.keyframes) if kf.goal is not None), None)
     write_npz(

@@ -40,6 +40,7 @@ from locoman.to.costs import (
     keyframe_base_cost,
     keyframe_foot_cost,
     object_goal_cost,
+    penetration_penalty,
     regularization_cost,
     stance_cost,
     walking_cost,
@@ -47,6 +48,7 @@ from locoman.to.costs import (
 from locoman.to.dynamics import rigid_body_momentum, wrench_sum
 from locoman.to.kinematics import SymbolicKinematics, euler_rates_to_world, rpy_matrix
 from locoman.to.layout import (
+    BODY_POINTS,
     FEET,
     HANDS,
     KINEMATICS,
@@ -147,7 +149,16 @@ def kinematics_function(
     for hand, link, palm, axes in zip(HANDS, HAND_LINKS, palms, PALM_AXES, strict=True):
         R, p = kin.frame_pose(link)
         w, _ = kin.frame_velocity(link)
-        parts |= {f"{hand}_r": p + R @ ca.DM(palm), f"{hand}_R": ca.vec(R @ ca.DM(axes)), f"{hand}_w": w}
+        parts |= {
+            f"{hand}_r": p + R @ ca.DM(palm),
+            f"{hand}_R": ca.vec(R @ ca.DM(axes)),
+            f"{hand}_w": w,
+        }
+    points = []
+    for link, offset, _ in BODY_POINTS:
+        R, p = kin.frame_pose(link)
+        points.append(p + R @ ca.DM(offset))
+    parts["body_points"] = ca.vertcat(*points)
     return ca.Function("kinematics", [q, v], [ca.vertcat(*[parts[name] for name in KINEMATICS])])
 
 
@@ -184,10 +195,14 @@ class StageBuilder:
         self.sole_half, self.palm_radius = np.asarray(sole_half), float(palm_radius)
         self.kinematics = kinematics_function(kin, sole_centre, palms)
         q, v = kin.q, kin.v
-        self._base_omega = ca.Function("base_omega", [q, v], [euler_rates_to_world(q[3:6]) @ v[3:6]])
+        self._base_omega = ca.Function(
+            "base_omega", [q, v], [euler_rates_to_world(q[3:6]) @ v[3:6]]
+        )
         self._cache: dict[tuple, tuple[ca.Function, np.ndarray, np.ndarray]] = {}
 
-    def group(self, mode: NodeMode, mode_next: NodeMode, last: bool, stages: np.ndarray) -> StageGroup:
+    def group(
+        self, mode: NodeMode, mode_next: NodeMode, last: bool, stages: np.ndarray
+    ) -> StageGroup:
         """The stage group of the given stages, which share ``(mode, mode_next, last)``."""
         key = (mode, mode_next, last)
         if key not in self._cache:
@@ -253,7 +268,7 @@ class StageBuilder:
         return out
 
     def _dynamics(self, z, z1, p, mode: NodeMode, mode_next: NodeMode) -> list[ca.SX]:
-        q, v, q1, v1, dt = _var(z, "q"), _var(z, "v"), _var(z1, "q"), _var(z1, "v"), _var(z, "dt")
+        q, q1, v1, dt = _var(z, "q"), _var(z1, "q"), _var(z1, "v"), _var(z, "dt")
         h, com, h1 = _kin(z, "h"), _kin(z, "com"), _kin(z1, "h")
         wrench = wrench_sum(com, self._robot_contacts(z, p, mode), self.kin.mass)
         rows = [h1 - h - wrench * dt, q1 - q - v1 * dt]  # (1a), (1b)
@@ -336,8 +351,11 @@ class StageBuilder:
             c_all = com
             if mode.carried:
                 _, co = rigid_body_momentum(
-                    _var(z, "object_q"), _var(z, "object_v"), self.obj.mass,
-                    ca.DM(self.obj.inertia), ca.DM(self.obj.com),
+                    _var(z, "object_q"),
+                    _var(z, "object_v"),
+                    self.obj.mass,
+                    ca.DM(self.obj.inertia),
+                    ca.DM(self.obj.com),
                 )
                 total = self.kin.mass + self.obj.mass
                 c_all = (self.kin.mass * com + self.obj.mass * co) / total
@@ -357,7 +375,22 @@ class StageBuilder:
         q_kf = ca.vertcat(0.0, 0.0, _par(p, "kf_base"))
         cost += _par(p, "kf_base_on") * keyframe_base_cost(w, q, q_kf)
         if mode.object_active:
-            cost += _par(p, "goal_on") * object_goal_cost(w, _var(z, "object_q"), _par(p, "goal"))
+            qo = _var(z, "object_q")
+            cost += _par(p, "goal_on") * object_goal_cost(w, qo, _par(p, "goal"))
+            cost += w.object_upright * ca.sumsqr(qo[3:5])
+            cost += self._object_collisions(z)
+        return cost
+
+    def _object_collisions(self, z: ca.SX) -> ca.SX:
+        """(12) between each body point and the object's ellipsoid."""
+        R_o, p_o, _ = self._object_frame(z)
+        centre = p_o + R_o @ ca.DM(self.obj.com)
+        half = np.r_[self.obj.half_extents, self.obj.com[2]]
+        points = _kin(z, "body_points")
+        cost = 0
+        for k, (_, _, radius) in enumerate(BODY_POINTS):
+            axes = (half + radius) * self.w.collision_scale
+            cost += penetration_penalty(self.w, points[3 * k : 3 * k + 3], centre, R_o, axes)
         return cost
 
     def _stage(
@@ -365,7 +398,9 @@ class StageBuilder:
     ) -> tuple[ca.Function, np.ndarray, np.ndarray]:
         z, z1 = ca.SX.sym("z", WIDTH), ca.SX.sym("z1", WIDTH)
         p, p1 = ca.SX.sym("p", N_PARAMS), ca.SX.sym("p1", N_PARAMS)
-        equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(z, z1, p1, mode, mode_next)
+        equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(
+            z, z1, p1, mode, mode_next
+        )
         inequalities = self._cones(z, p, mode)
         eq = ca.vertcat(*equalities)
         ineq = ca.vertcat(*inequalities) if inequalities else ca.SX(0, 1)

@@ -145,9 +145,7 @@ def sole_points(q35: np.ndarray) -> np.ndarray:
     data = model.createData()
     pin.framesForwardKinematics(model, data, g1.q35_to_pin(q35))
     centre = g1.foot_sole_corners()[FOOT_LINKS[0]].mean(axis=0)
-    return np.array(
-        [data.oMf[model.getFrameId(link)].act(centre) for link in FOOT_LINKS]
-    )
+    return np.array([data.oMf[model.getFrameId(link)].act(centre) for link in FOOT_LINKS])
 
 
 def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
@@ -257,14 +255,20 @@ def bounds(
     for k, mode in enumerate(modes):
         last = k == n - 1
         for i in range(2):
-            foot = slice(VARIABLES["foot_wrench"].start + 6 * i, VARIABLES["foot_wrench"].start + 6 * i + 6)
-            hand = slice(VARIABLES["hand_wrench"].start + 6 * i, VARIABLES["hand_wrench"].start + 6 * i + 6)
+            foot = slice(
+                VARIABLES["foot_wrench"].start + 6 * i, VARIABLES["foot_wrench"].start + 6 * i + 6
+            )
+            hand = slice(
+                VARIABLES["hand_wrench"].start + 6 * i, VARIABLES["hand_wrench"].start + 6 * i + 6
+            )
             if not mode.feet[i] or last:
                 lo[foot, k] = hi[foot, k] = 0.0
             if not mode.hands[i] or last:
                 lo[hand, k] = hi[hand, k] = 0.0
             if not mode.feet[i] or k == 0:
-                lo[VARIABLES["foot_slack"].start + i, k] = hi[VARIABLES["foot_slack"].start + i, k] = 0.0
+                lo[VARIABLES["foot_slack"].start + i, k] = hi[
+                    VARIABLES["foot_slack"].start + i, k
+                ] = 0.0
             if not mode.hands[i] or not mode.object_active:
                 s = VARIABLES["hand_slack"].start + 3 * i
                 lo[s : s + 3, k] = hi[s : s + 3, k] = 0.0
@@ -345,7 +349,14 @@ class TrajectoryOptimizer:
         self.sole_half = sole_half
         palms = np.array([frames.palm["left_palm"], frames.palm["right_palm"]])
         builder = StageBuilder(
-            self.kin, inputs.obj, sole_centre, sole_half, palms, frames.palm_radius, weights, contact
+            self.kin,
+            inputs.obj,
+            sole_centre,
+            sole_half,
+            palms,
+            frames.palm_radius,
+            weights,
+            contact,
         )
         n = self.schedule.nodes
         keys: dict[tuple, list[int]] = {}
@@ -422,6 +433,7 @@ def object_pose(T: np.ndarray) -> np.ndarray:
 
 
 __all__ = [
+    "NQ",
     "Keyframe",
     "SolverCfg",
     "TOInputs",
@@ -430,5 +442,4 @@ __all__ = [
     "build_schedule",
     "node_modes",
     "object_pose",
-    "NQ",
 ]

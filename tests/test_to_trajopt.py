@@ -1,0 +1,128 @@
+"""The whole TO on a small problem: it converges, its dynamics hold by Pinocchio's account,
+the feet stay put, and a failed solve comes back with its status; plus the schedule."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from locoman.errors import ConfigError
+from locoman.scene import g1
+from locoman.sim.evaluate import cone_violation, dynamics_residuals, stance_slip
+from locoman.to.costs import CostWeights
+from locoman.to.layout import ObjectModel
+from locoman.to.problem import ContactCfg
+from locoman.to.schedule import ScheduleCfg, step_count, subtask_phases
+from locoman.to.trajopt import Keyframe, SolverCfg, TOInputs, TrajectoryOptimizer, node_modes
+
+BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
+SOLE = g1.foot_sole_corners()["left_ankle_roll_link"].mean(axis=0)
+
+
+def _squat_inputs() -> TOInputs:
+    start = g1.standing_q35()
+    keyframe = start.copy()
+    keyframe[2] -= 0.12
+    frames = np.array([np.eye(3), np.eye(3)])
+    return TOInputs(
+        start,
+        np.array([2.0, 0.0, 0.7, 0.0, 0.0, 0.0]),
+        BOX,
+        [Keyframe("walk", keyframe, np.array([2.0, 0.0, 0.7, 0.0, 0.0, 0.0]))],
+        np.zeros((2, 3)),
+        frames,
+    )
+
+
+def _optimizer(tmp_path_factory, **solver) -> TrajectoryOptimizer:
+    cache = tmp_path_factory.getbasetemp() / "casadi"
+    cfg = SolverCfg(compile=False, print_level=0, **solver)
+    schedule = ScheduleCfg(double_support_nodes=4)
+    return TrajectoryOptimizer(_squat_inputs(), schedule, CostWeights(), ContactCfg(), cfg, cache)
+
+
+def _as_arrays(traj) -> dict[str, np.ndarray]:
+    out = {f.name: getattr(traj, f.name) for f in dataclasses.fields(traj)}
+    out |= {"prehensile": False, "mu": np.array([0.8, 0.8, 0.8])}
+    return out
+
+
+@pytest.fixture(scope="module")
+def squat(tmp_path_factory):
+    return _optimizer(tmp_path_factory, max_iterations=200).solve()
+
+
+def test_the_squat_converges_towards_the_keyframe_height(squat):
+    assert squat.success, squat.status
+    assert squat.q.shape == (5, 35)
+    assert squat.max_constraint_violation <= 1e-6
+    # (9) pulls the base towards the keyframe's lower height.
+    assert squat.q[-1, 2] < squat.q[0, 2] - 1e-4
+
+
+def test_dynamics_hold_by_pinocchio_and_the_feet_do_not_slip(squat):
+    arrays = _as_arrays(squat)
+    assert dynamics_residuals(arrays, BOX, SOLE).max <= 1e-6
+    assert stance_slip(arrays, SOLE) <= 1e-6
+    assert squat.foot_wrench[:-1, :, 2].sum(axis=1).min() > 0.0
+
+
+def test_a_failed_solve_is_returned_with_its_status(tmp_path_factory):
+    traj = _optimizer(tmp_path_factory, max_iterations=1).solve()
+    assert not traj.success
+    assert traj.status == "Maximum_Iterations_Exceeded"
+    assert traj.iterations == 1
+
+
+def test_step_count_is_even_and_bounded_by_length_and_turn():
+    cfg = ScheduleCfg(step_length_m=0.25, step_yaw_rad=0.45, step_min_m=0.15)
+    feet = np.array([[0.0, 0.1], [0.0, -0.1]])
+    assert step_count(feet, feet + np.array([0.1, 0.0]), 0.0, 0.0, cfg) == 0
+    assert step_count(feet, feet + np.array([0.3, 0.0]), 0.0, 0.0, cfg) == 2
+    assert step_count(feet, feet + np.array([0.6, 0.0]), 0.0, 0.0, cfg) == 4
+    assert step_count(feet, feet, 0.0, 1.7, cfg) == 4
+
+
+def test_pick_and_place_phases_hold_the_object_from_grasp_to_set():
+    cfg = ScheduleCfg()
+    pick = subtask_phases("pick", 1, 0, True, cfg)
+    assert [p.name for p in pick] == ["reach", "grasp", "lift"]
+    assert [p.keyframe for p in pick] == [False, True, False]
+    place = subtask_phases("place", 2, 2, True, cfg)
+    assert [p.name for p in place] == [
+        "swing_right",
+        "stance",
+        "swing_left",
+        "stance",
+        "lower",
+        "set",
+    ]
+    assert all(all(p.hands) for p in place)
+    assert [p.object_supported for p in place][-1] and not place[0].object_supported
+    with pytest.raises(ConfigError, match="push"):
+        subtask_phases("push", 0, 0, True, cfg)
+
+
+def test_the_object_is_simulated_from_the_first_touch():
+    from locoman.to.schedule import Schedule
+
+    cfg = ScheduleCfg()
+    schedule = Schedule.from_phases(subtask_phases("pick", 0, 0, True, cfg))
+    modes = node_modes(schedule)
+    touch = 1 + cfg.reach_nodes
+    assert not any(m.object_active for m in modes[:touch])
+    assert all(m.object_active for m in modes[touch:])
+    assert modes[-1].carried and not modes[touch].carried
+
+
+def test_cone_violation_is_zero_inside_and_the_excess_outside():
+    R, half = np.eye(3), np.array([0.1, 0.05])
+    assert cone_violation(np.array([1.0, 2.0, 10.0]), np.zeros(3), R, 0.5, half) == 0.0
+    assert cone_violation(np.array([6.0, 0.0, 10.0]), np.zeros(3), R, 0.5, half) == pytest.approx(
+        1.0
+    )
+    assert cone_violation(np.zeros(3), np.array([0.0, 1.5, 0.0]), R, 0.5, half) == pytest.approx(
+        1.5
+    )
