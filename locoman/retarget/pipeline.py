@@ -8,7 +8,6 @@ from typing import Any
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 
 from locoman.artifacts import read_json, read_npz, write_json_atomic, write_npz, write_png
 from locoman.artifacts.mcap_io import write_frame_transforms
@@ -66,20 +65,6 @@ def _scene_qpos(model: mujoco.MjModel, q: np.ndarray, obj: str, T_obj: np.ndarra
     return qpos
 
 
-def _link_poses(q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    model = g1.g1_pinocchio_model()
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    out = {}
-    for f, frame in enumerate(model.frames):
-        if frame.type != pin.FrameType.BODY:
-            continue
-        pose = data.oMf[f]
-        quat = pin.Quaternion(pose.rotation)
-        out[frame.name] = (pose.translation.copy(), np.array([quat.w, quat.x, quat.y, quat.z]))
-    return out
-
-
 def retarget_scenario(
     scenario: str,
     scene_dir: Path,
@@ -133,7 +118,7 @@ def retarget_scenario(
                 "iterations": np.array(result.iterations),
             },
         )
-        frames.append(_link_poses(result.q))
+        frames.append(g1.link_poses(result.q))
         robot = render_keyframe(
             model,
             _scene_qpos(model, result.q, entry["object"], contacts["T_world_object"]),

@@ -339,6 +339,22 @@ def pin_to_q35(q: np.ndarray) -> np.ndarray:
     return np.concatenate([q[:3], rotations.quat_xyzw_to_rpy(q[3:7]), q[7:]])
 
 
+def link_poses(q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World pose of every link (body frame) at Pinocchio configuration ``q``: position
+    (3,) [m] and quaternion (4,) (w, x, y, z)."""
+    model = g1_pinocchio_model()
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    out = {}
+    for f, frame in enumerate(model.frames):
+        if frame.type != pin.FrameType.BODY:
+            continue
+        pose = data.oMf[f]
+        quat = pin.Quaternion(pose.rotation)
+        out[frame.name] = (pose.translation.copy(), np.array([quat.w, quat.x, quat.y, quat.z]))
+    return out
+
+
 def mujoco_joint_qpos_indices(model: mujoco.MjModel) -> np.ndarray:
     """``qpos`` address of each joint of :data:`G1_JOINT_NAMES` in a compiled MuJoCo model."""
     try:

@@ -26,7 +26,6 @@ from locoman.to.kinematics import pin_configuration, pin_velocity
 from locoman.to.layout import ObjectModel
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2]
-FOOT_LINKS = ("left_ankle_roll_link", "right_ankle_roll_link")
 
 
 def euler_rates_to_world(rpy: np.ndarray) -> np.ndarray:
@@ -93,7 +92,7 @@ def _sole_frames(q35: np.ndarray, sole_centre: np.ndarray) -> list[tuple[np.ndar
     data = model.createData()
     pin.framesForwardKinematics(model, data, g1.q35_to_pin(q35))
     out = []
-    for link in FOOT_LINKS:
+    for link in g1.FOOT_LINKS:
         pose = data.oMf[model.getFrameId(link)]
         out.append((pose.rotation @ sole_centre + pose.translation, pose.rotation.copy()))
     return out

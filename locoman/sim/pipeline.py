@@ -20,6 +20,7 @@ import numpy as np
 from locoman.artifacts import read_npz, write_json_atomic, write_png, write_text_atomic
 from locoman.artifacts.pictures import fit_tile
 from locoman.config.to import EvaluateCfg
+from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_scene_model
 from locoman.sim.evaluate import (
@@ -73,8 +74,8 @@ def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Eval
     model = load_scene_model(scene_dir)
     name = str(traj["object_name"])
     spec = load_objects(scene_dir)[name]
-    obj = ObjectModel.box(name, np.array(spec["size_m"]), spec["mass_kg"], spec["friction"])
-    sole_centre = g1.foot_sole_corners()["left_ankle_roll_link"].mean(axis=0)
+    obj = ObjectModel.from_spec(name, spec)
+    sole_centre = contact_frames().sole["left_sole"]
     per_node, deepest = penetrations(model, traj["q"], name, traj["object_q"])
     residuals = dynamics_residuals(traj, obj, sole_centre)
     friction = friction_violation(traj, sole_centre)

@@ -111,6 +111,11 @@ class ObjectModel:
     friction: float
 
     @classmethod
+    def from_spec(cls, name: str, spec: dict) -> ObjectModel:
+        """The object of the scene's object table (``objects.json``) entry ``spec``."""
+        return cls.box(name, np.array(spec["size_m"]), spec["mass_kg"], spec["friction"])
+
+    @classmethod
     def box(cls, name: str, size: np.ndarray, mass: float, friction: float) -> ObjectModel:
         """A solid box of full ``size`` (3,) [m] with its frame at the bottom centre."""
         a, b, c = np.asarray(size, dtype=float)

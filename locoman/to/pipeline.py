@@ -7,7 +7,6 @@ from typing import Any
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 
 from locoman.artifacts import read_npz, write_json_atomic, write_npz
 from locoman.artifacts.mcap_io import write_frame_transforms
@@ -63,7 +62,7 @@ def load_inputs(scene_dir: Path, contacts_dir: Path, retarget_dir: Path) -> TOIn
     plan = load_plan(scene_dir)
     name = manipulated_object(plan)
     spec = load_objects(scene_dir)[name]
-    obj = ObjectModel.box(name, np.array(spec["size_m"]), spec["mass_kg"], spec["friction"])
+    obj = ObjectModel.from_spec(name, spec)
     start = np.r_[spec["pos_m"], 0.0, 0.0, spec["yaw_rad"]]
     keyframes = []
     for sub in plan["subtasks"]:
@@ -89,18 +88,12 @@ def load_inputs(scene_dir: Path, contacts_dir: Path, retarget_dir: Path) -> TOIn
 
 def _poses(traj: Trajectory, object_name: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Link and object poses over the nodes: positions (N, 3), quaternions (N, 4) wxyz."""
-    model = g1.g1_pinocchio_model()
-    data = model.createData()
     out: dict[str, tuple[list, list]] = {}
     for q, q_obj in zip(traj.q, traj.object_q, strict=True):
-        pin.framesForwardKinematics(model, data, g1.q35_to_pin(q))
-        for f, frame in enumerate(model.frames):
-            if frame.type == pin.FrameType.BODY:
-                pose = data.oMf[f]
-                quat = pin.Quaternion(pose.rotation)
-                entry = out.setdefault(frame.name, ([], []))
-                entry[0].append(pose.translation.copy())
-                entry[1].append([quat.w, quat.x, quat.y, quat.z])
+        for name, (pos, quat) in g1.link_poses(g1.q35_to_pin(q)).items():
+            entry = out.setdefault(name, ([], []))
+            entry[0].append(pos)
+            entry[1].append(quat)
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, rpy_to_matrix(q_obj[3:6]).ravel())
         entry = out.setdefault(object_name, ([], []))

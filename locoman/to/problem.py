@@ -29,6 +29,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
+from locoman.scene import g1
 from locoman.to.contacts import (
     friction_cone_cop,
     interactive_contact,
@@ -60,8 +61,6 @@ from locoman.to.layout import (
 )
 from locoman.to.nlp import StageGroup
 
-FOOT_LINKS = ("left_ankle_roll_link", "right_ankle_roll_link")
-HAND_LINKS = ("left_rubber_hand", "right_rubber_hand")
 # The contact frame of each palm in its hand link: z is the palm's outward normal (the
 # left palm faces -y of its link, the right +y), so that (5a) turns the palm onto the face.
 PALM_AXES = (
@@ -136,7 +135,7 @@ def kinematics_function(
     """K(q, v): the lifted kinematic quantities in :data:`KINEMATICS` order."""
     q, v = kin.q, kin.v
     parts = {"h": kin.centroidal_momentum(), "com": kin.com()}
-    for foot, link in zip(FEET, FOOT_LINKS, strict=True):
+    for foot, link in zip(FEET, g1.FOOT_LINKS, strict=True):
         R, p = kin.frame_pose(link)
         w, v_origin = kin.frame_velocity(link)
         offset = R @ ca.DM(sole_centre)
@@ -146,7 +145,7 @@ def kinematics_function(
             f"{foot}_R": ca.vec(R),
             f"{foot}_w": w,
         }
-    for hand, link, palm, axes in zip(HANDS, HAND_LINKS, palms, PALM_AXES, strict=True):
+    for hand, link, palm, axes in zip(HANDS, g1.HAND_LINKS, palms, PALM_AXES, strict=True):
         R, p = kin.frame_pose(link)
         w, _ = kin.frame_velocity(link)
         parts |= {

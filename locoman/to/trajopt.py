@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.rotations import matrix_to_rpy
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
-from locoman.to.layout import N_PARAMS, NQ, PARAMETERS, VARIABLES, WIDTH, ObjectModel
+from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
 from locoman.to.nlp import NLPResult, StageNLP
-from locoman.to.problem import FOOT_LINKS, ContactCfg, NodeMode, StageBuilder
+from locoman.to.problem import ContactCfg, NodeMode, StageBuilder
 from locoman.to.schedule import Schedule, ScheduleCfg, step_count, subtask_phases
 
 GRAVITY = 9.81  # [m/s^2]
@@ -144,8 +145,8 @@ def sole_points(q35: np.ndarray) -> np.ndarray:
     model = g1.g1_pinocchio_model()
     data = model.createData()
     pin.framesForwardKinematics(model, data, g1.q35_to_pin(q35))
-    centre = g1.foot_sole_corners()[FOOT_LINKS[0]].mean(axis=0)
-    return np.array([data.oMf[model.getFrameId(link)].act(centre) for link in FOOT_LINKS])
+    centre = contact_frames().sole["left_sole"]
+    return np.array([data.oMf[model.getFrameId(link)].act(centre) for link in g1.FOOT_LINKS])
 
 
 def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
@@ -184,7 +185,7 @@ def _frames_columns(frames: np.ndarray) -> np.ndarray:
 
 
 def parameters(
-    inputs: TOInputs, schedule: Schedule, weights: CostWeights, keyframe_costs: tuple[bool, bool]
+    inputs: TOInputs, schedule: Schedule, keyframe_costs: tuple[bool, bool]
 ) -> np.ndarray:
     """(N_PARAMS, N): references and switches per node.
 
@@ -317,8 +318,8 @@ def initial_guess(
 
 
 class TrajectoryOptimizer:
-    """The TO of one scenario, built once: new parameters (keyframe switches, weights of
-    the parameter vector) re-solve without rebuilding.
+    """The TO of one scenario, built once: new parameters (the keyframe switches)
+    re-solve without rebuilding.
 
     Args:
         inputs: The scenario.
@@ -335,18 +336,14 @@ class TrajectoryOptimizer:
         solver: SolverCfg,
         cache_dir: Path,
     ) -> None:
-        from locoman.retarget.robot import contact_frames
-
         self.inputs, self.cfg, self.weights = inputs, solver, weights
         self.schedule = build_schedule(inputs, schedule_cfg)
         self.modes = node_modes(self.schedule)
         model = g1.g1_pinocchio_model()
         self.kin = SymbolicKinematics(model)
         frames = contact_frames()
-        corners = g1.foot_sole_corners()[FOOT_LINKS[0]]
-        sole_centre = corners.mean(axis=0)
-        sole_half = 0.5 * (corners.max(axis=0) - corners.min(axis=0))[:2]
-        self.sole_half = sole_half
+        sole_centre = frames.sole["left_sole"]
+        self.sole_half = sole_half = frames.sole_half_extents
         palms = np.array([frames.palm["left_palm"], frames.palm["right_palm"]])
         builder = StageBuilder(
             self.kin,
@@ -381,7 +378,7 @@ class TrajectoryOptimizer:
     def solve(self, keyframe_costs: tuple[bool, bool] = (True, True)) -> Trajectory:
         """Solve; a failed solve is a trajectory with ``success`` False, not an exception."""
         inputs, schedule, modes = self.inputs, self.schedule, self.modes
-        P = parameters(inputs, schedule, self.weights, keyframe_costs)
+        P = parameters(inputs, schedule, keyframe_costs)
         lo, hi = bounds(inputs, schedule, modes, self.cfg)
         X0 = np.clip(initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass), lo, hi)
         q, v = X0[VARIABLES["q"]], X0[VARIABLES["v"]]
@@ -430,16 +427,3 @@ class TrajectoryOptimizer:
 def object_pose(T: np.ndarray) -> np.ndarray:
     """(6,) (p, rpy) of a 4x4 transform."""
     return np.r_[T[:3, 3], matrix_to_rpy(T[:3, :3])]
-
-
-__all__ = [
-    "NQ",
-    "Keyframe",
-    "SolverCfg",
-    "TOInputs",
-    "Trajectory",
-    "TrajectoryOptimizer",
-    "build_schedule",
-    "node_modes",
-    "object_pose",
-]
