@@ -41,7 +41,7 @@ def main() -> None:
         }
         schedule = dataclasses.replace(cfg.schedule, **counts)
         optimizer = TrajectoryOptimizer(
-            inputs, schedule, cfg.weights, cfg.contact, solver, Path(cfg.cache_dir)
+            inputs, schedule, cfg.weights, cfg.contact, cfg.collision, solver, Path(cfg.cache_dir)
         )
         runs = [
             optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot)) for _ in range(args.repeats)

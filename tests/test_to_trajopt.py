@@ -11,6 +11,7 @@ import pytest
 from locoman.errors import ConfigError
 from locoman.scene import g1
 from locoman.sim.evaluate import cone_violation, dynamics_residuals, stance_slip
+from locoman.to.collision import CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.layout import ObjectModel
 from locoman.to.problem import ContactCfg
@@ -40,7 +41,9 @@ def _optimizer(tmp_path_factory, **solver) -> TrajectoryOptimizer:
     cache = tmp_path_factory.getbasetemp() / "casadi"
     cfg = SolverCfg(compile=False, print_level=0, **solver)
     schedule = ScheduleCfg(double_support_nodes=4)
-    return TrajectoryOptimizer(_squat_inputs(), schedule, CostWeights(), ContactCfg(), cfg, cache)
+    return TrajectoryOptimizer(
+        _squat_inputs(), schedule, CostWeights(), ContactCfg(), CollisionCfg(), cfg, cache
+    )
 
 
 def _as_arrays(traj) -> dict[str, np.ndarray]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from locoman.to.collision import CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.problem import ContactCfg
 from locoman.to.schedule import ScheduleCfg
@@ -26,6 +27,7 @@ class SolveCfg:
         keyframe_foot: Keyframe foot cost (10) on.
         schedule: Node counts of the contact schedule.
         contact: Contact parameters.
+        collision: Collision terms (Sec. IV-D).
         weights: Table I, (9), (10) and the object goal.
         solver: IPOPT, the time grid and the warm start.
         cache_dir: Where compiled derivatives are kept between runs.
@@ -36,6 +38,7 @@ class SolveCfg:
     keyframe_foot: bool = True
     schedule: ScheduleCfg = field(default_factory=ScheduleCfg)
     contact: ContactCfg = field(default_factory=ContactCfg)
+    collision: CollisionCfg = field(default_factory=CollisionCfg)
     weights: CostWeights = field(default_factory=CostWeights)
     solver: SolverCfg = field(default_factory=SolverCfg)
     cache_dir: str = ".cache/casadi"

@@ -40,12 +40,16 @@ class ContactFrames:
     Attributes:
         palm: Link name -> palm centre in the hand link frame [m].
         palm_radius: Radius of the hand's collision capsule [m].
+        palm_axes: Link name -> (3, 3) palm contact frame in the hand link frame: z the
+            palm's outward normal, square to the capsule's axis (x), so that a palm laid on
+            a face along z touches it along the whole capsule.
         sole: Link name -> sole centre in the ankle roll link frame [m].
         sole_half_extents: (2,) half length and half width of the foot box [m].
     """
 
     palm: dict[str, np.ndarray]
     palm_radius: float
+    palm_axes: dict[str, np.ndarray]
     sole: dict[str, np.ndarray]
     sole_half_extents: np.ndarray
 
@@ -54,16 +58,24 @@ class ContactFrames:
 def contact_frames() -> ContactFrames:
     """Palm and sole frames of the MuJoCo G1's collision geometry."""
     model = g1.g1_mjmodel()
-    palm, radii, sole = {}, [], {}
+    palm, radii, axes, sole = {}, [], {}, {}
     for frame, link in _HAND_LINK.items():
         geom = _collision_geoms(model, link)[0]
         palm[frame] = model.geom_pos[geom].copy()
         radii.append(float(model.geom_size[geom][0]))
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[geom])
+        along = rot.reshape(3, 3)[:, 2] * np.sign(rot[2])  # towards the fingers (+x)
+        # The left palm faces -y of its link, the right +y.
+        facing = np.array([0.0, -1.0 if frame.startswith("left") else 1.0, 0.0])
+        normal = facing - (facing @ along) * along
+        normal /= np.linalg.norm(normal)
+        axes[frame] = np.column_stack([along, np.cross(normal, along), normal])
     for frame, link in _FOOT_LINK.items():
         geom = model.geom(link.replace("_ankle_roll_link", "_foot"))
         sole[frame] = geom.pos - np.array([0.0, 0.0, geom.size[2]])
         half = geom.size[:2].copy()
-    return ContactFrames(palm, max(radii), sole, half)
+    return ContactFrames(palm, max(radii), axes, sole, half)
 
 
 def _collision_geoms(model: mujoco.MjModel, body: str) -> list[int]:
@@ -94,16 +106,12 @@ def _shapes(model: mujoco.MjModel, geom: int) -> list[str]:
     if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
         shape = f'<cylinder radius="{size[0]}" length="{2.0 * size[1]}"/>'
         return [f"<collision>{_origin(pos, quat)}<geometry>{shape}</geometry></collision>"]
-    rot = np.zeros(9)
-    mujoco.mju_quat2Mat(rot, quat)
-    axis = rot.reshape(3, 3)[:, 2]
-    half = size[1] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0.0
     # Spheres at most a radius apart: between two of them the chain is at most 13 % of a
     # radius (1.6 cm on the torso) thinner than the capsule; the IK margin covers that.
-    count = int(np.ceil(2.0 * half / size[0])) + 1
-    centres = [pos + t * half * axis for t in np.linspace(-1.0, 1.0, count)]
-    sphere = f'<sphere radius="{size[0]}"/>'
-    return [f"<collision>{_origin(c)}<geometry>{sphere}</geometry></collision>" for c in centres]
+    return [
+        f'<collision>{_origin(c)}<geometry><sphere radius="{r}"/></geometry></collision>'
+        for c, r in g1.capsule_spheres(model, geom)
+    ]
 
 
 @functools.cache

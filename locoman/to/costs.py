@@ -16,12 +16,16 @@ LEGS = tuple(
     k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("hip", "knee", "ankle"))
 )
 ARMS = tuple(
-    k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("shoulder", "elbow", "wrist"))
+    k
+    for k, n in enumerate(G1_JOINT_NAMES)
+    if any(p in n for p in ("waist", "shoulder", "elbow", "wrist"))
 )
 
 # The arms' nominal angles: the G1's standing posture (elbows bent, hands off the hips).
 # Table I regularises q_arm without naming a reference; at zero the G1's elbow capsules
-# sit in its pelvis.
+# sit in its pelvis. The paper's legs and arms leave out the G1's three waist joints; they
+# count as arm joints here: unregularised, the waist twisted by up to 2.5 rad while the
+# robot walked and swung the hands through the hips.
 ARM_NOMINAL = [STANDING_JOINTS.get(G1_JOINT_NAMES[k], 0.0) for k in ARMS]
 
 
@@ -60,9 +64,7 @@ class CostWeights:
         object_goal: Object position (xy) and yaw at the plan's target, last node; not in
             the paper, which states the target without its cost [-].
         object_upright: Object roll and pitch while it moves (ours) [-].
-        collision: Penalty (12) between the robot's body points and the object [-].
-        collision_scale: Each ellipsoid's semi-axes: the object's half sizes plus the
-            point's radius, times this [-].
+        collision: Penalties (12) of :mod:`locoman.to.collision` [-].
     """
 
     com_over_feet: float = 5e2
@@ -89,7 +91,6 @@ class CostWeights:
     object_goal: float = 1e4
     object_upright: float = 1e2
     collision: float = 1e3
-    collision_scale: float = 1.2
 
     def check(self) -> list[tuple[str, str]]:
         values = [v for v in dataclasses.asdict(self).values() if isinstance(v, float)]
@@ -173,14 +174,6 @@ def keyframe_base_cost(w: CostWeights, q: ca.SX, q_keyframe: ca.SX) -> ca.SX:
 def object_goal_cost(w: CostWeights, q_object: ca.SX, goal: ca.SX) -> ca.SX:
     """The object at its target: position xy [m] and yaw [rad] (goal = (x, y, yaw))."""
     return w.object_goal * (ca.sumsqr(q_object[0:2] - goal[0:2]) + (q_object[5] - goal[2]) ** 2)
-
-
-def penetration_penalty(w: CostWeights, point: ca.SX, centre: ca.SX, R: ca.SX, semi_axes) -> ca.SX:
-    """(12): p^2 where the scaled penetration p = d^2 - 1 < 0, d the point's scaled distance
-    from the ellipsoid's centre (semi-axes [m] in frame R), 0 outside."""
-    local = (R.T @ (point - centre)) / ca.DM(semi_axes)
-    p = ca.sumsqr(local) - 1.0
-    return w.collision * ca.fmin(p, 0.0) ** 2
 
 
 def keyframe_foot_cost(w: CostWeights, r_lf: ca.SX, r_rf: ca.SX, r_des: ca.SX) -> ca.SX:

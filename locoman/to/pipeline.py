@@ -15,9 +15,11 @@ from locoman.contact.io import CONTACTS
 from locoman.contact.io import subtask_file as contact_file
 from locoman.errors import ArtifactError
 from locoman.retarget.io import KEYFRAME, keyframe_file
+from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
 from locoman.scene.rotations import matrix_to_rpy, quat_wxyz_to_matrix, rpy_to_matrix
+from locoman.to.collision import obstacles_from_objects
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import HANDS, ObjectModel
 from locoman.to.trajopt import (
@@ -83,7 +85,10 @@ def load_inputs(scene_dir: Path, contacts_dir: Path, retarget_dir: Path) -> TOIn
     rows = [effectors.index(h) for h in HANDS]
     points = contacts["points_object_m"][rows]
     frames = np.array([contact_frame(R.T @ contacts["normals_world"][r]) for r in rows])
-    return TOInputs(start_configuration(scene_dir), start, obj, keyframes, points, frames)
+    obstacles = obstacles_from_objects(load_objects(scene_dir))
+    return TOInputs(
+        start_configuration(scene_dir), start, obj, keyframes, points, frames, obstacles
+    )
 
 
 def _poses(traj: Trajectory, object_name: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -109,7 +114,13 @@ def solve_scenario(
     failed solve is written too, with its status."""
     inputs = load_inputs(scene_dir, contacts_dir, retarget_dir)
     optimizer = TrajectoryOptimizer(
-        inputs, cfg.schedule, cfg.weights, cfg.contact, cfg.solver, Path(cfg.cache_dir)
+        inputs,
+        cfg.schedule,
+        cfg.weights,
+        cfg.contact,
+        cfg.collision,
+        cfg.solver,
+        Path(cfg.cache_dir),
     )
     n = optimizer.schedule.nodes
     print(
@@ -145,7 +156,7 @@ def solve_scenario(
             "object_goal": goal if goal is not None else np.full(3, np.nan),
             "object_name": inputs.obj.name,
             "mu": np.array([cfg.contact.floor_friction, inputs.obj.friction, inputs.obj.friction]),
-            "sole_half_extents": optimizer.sole_half,
+            "sole_half_extents": contact_frames().sole_half_extents,
             "palm_half_extents": np.array(cfg.contact.palm_half_extents_m),
             "object_half_extents": inputs.obj.half_extents,
             "hand_frames": inputs.hand_frames,

@@ -29,7 +29,16 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
+from locoman.retarget.robot import ContactFrames
 from locoman.scene import g1
+from locoman.to.collision import (
+    CollisionCfg,
+    Obstacle,
+    box_corners,
+    penetration_penalty,
+    self_collision_cost,
+    sphere_box_penetration,
+)
 from locoman.to.contacts import (
     friction_cone_cop,
     interactive_contact,
@@ -41,7 +50,6 @@ from locoman.to.costs import (
     keyframe_base_cost,
     keyframe_foot_cost,
     object_goal_cost,
-    penetration_penalty,
     regularization_cost,
     stance_cost,
     walking_cost,
@@ -60,13 +68,6 @@ from locoman.to.layout import (
     ObjectModel,
 )
 from locoman.to.nlp import StageGroup
-
-# The contact frame of each palm in its hand link: z is the palm's outward normal (the
-# left palm faces -y of its link, the right +y), so that (5a) turns the palm onto the face.
-PALM_AXES = (
-    np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
-    np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
-)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,23 +130,24 @@ def _kin(z: ca.SX, name: str) -> ca.SX:
     return ca.reshape(value, 3, 3) if name.endswith("_R") else value
 
 
-def kinematics_function(
-    kin: SymbolicKinematics, sole_centre: np.ndarray, palms: np.ndarray
-) -> ca.Function:
-    """K(q, v): the lifted kinematic quantities in :data:`KINEMATICS` order."""
+def kinematics_function(kin: SymbolicKinematics, frames: ContactFrames) -> ca.Function:
+    """K(q, v): the lifted kinematic quantities in :data:`KINEMATICS` order. A palm's
+    contact frame is ``frames.palm_axes``: (5a) lays the palm's capsule flat on the face."""
     q, v = kin.q, kin.v
     parts = {"h": kin.centroidal_momentum(), "com": kin.com()}
+    palms = [frames.palm[f"{side}_palm"] for side in ("left", "right")]
+    palm_axes = [frames.palm_axes[f"{side}_palm"] for side in ("left", "right")]
     for foot, link in zip(FEET, g1.FOOT_LINKS, strict=True):
         R, p = kin.frame_pose(link)
         w, v_origin = kin.frame_velocity(link)
-        offset = R @ ca.DM(sole_centre)
+        offset = R @ ca.DM(frames.sole["left_sole"])
         parts |= {
             f"{foot}_r": p + offset,
             f"{foot}_r_dot": v_origin + ca.cross(w, offset),
             f"{foot}_R": ca.vec(R),
             f"{foot}_w": w,
         }
-    for hand, link, palm, axes in zip(HANDS, g1.HAND_LINKS, palms, PALM_AXES, strict=True):
+    for hand, link, palm, axes in zip(HANDS, g1.HAND_LINKS, palms, palm_axes, strict=True):
         R, p = kin.frame_pose(link)
         w, _ = kin.frame_velocity(link)
         parts |= {
@@ -171,28 +173,28 @@ class StageBuilder:
     Args:
         kin: Symbolic kinematics of the G1.
         obj: The manipulated object.
-        sole_centre: (3,) sole centre in the ankle roll link frame [m].
-        sole_half: (2,) half length and width of the sole [m].
-        palms: (2, 3) palm centres in the hand link frames [m].
-        palm_radius: Distance from a palm centre to its surface [m].
+        frames: The G1's sole and palm frames.
         weights: Cost weights.
         contact: Contact parameters.
+        collision: Which collision terms (Sec. IV-D) to add.
+        obstacles: The scene's fixed boxes.
     """
 
     def __init__(
         self,
         kin: SymbolicKinematics,
         obj: ObjectModel,
-        sole_centre: np.ndarray,
-        sole_half: np.ndarray,
-        palms: np.ndarray,
-        palm_radius: float,
+        frames: ContactFrames,
         weights: CostWeights,
         contact: ContactCfg,
+        collision: CollisionCfg,
+        obstacles: tuple[Obstacle, ...],
     ) -> None:
         self.kin, self.obj, self.w, self.contact = kin, obj, weights, contact
-        self.sole_half, self.palm_radius = np.asarray(sole_half), float(palm_radius)
-        self.kinematics = kinematics_function(kin, sole_centre, palms)
+        self.collision, self.obstacles = collision, obstacles
+        self.sole_half = np.asarray(frames.sole_half_extents)
+        self.palm_radius = float(frames.palm_radius)
+        self.kinematics = kinematics_function(kin, frames)
         q, v = kin.q, kin.v
         self._base_omega = ca.Function(
             "base_omega", [q, v], [euler_rates_to_world(q[3:6]) @ v[3:6]]
@@ -216,6 +218,21 @@ class StageBuilder:
         fn = ca.Function("kinematics_node", [z, p], [residual, ca.SX(0)])
         rows = residual.numel()
         return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(rows), np.zeros(rows))
+
+    def self_collision_group(self, nodes: np.ndarray) -> StageGroup | None:
+        """(12) between the spheres of each of ``collision.self_pairs``, from q; None when
+        there are no pairs."""
+        if not self.collision.self_pairs:
+            return None
+        z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
+        cost = self_collision_cost(
+            self.kin.frame_pose, self.collision.self_pairs, self.collision.margin_m
+        )
+        of_q = ca.Function("self_collision", [self.kin.q], [cost])
+        fn = ca.Function(
+            "self_collision_node", [z, p], [ca.SX(0, 1), self.w.collision * of_q(_var(z, "q"))]
+        )
+        return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(0), np.zeros(0))
 
     def _foot(self, z: ca.SX, i: int) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """Sole centre [m], its velocity [m/s], rotation and angular velocity [rad/s]."""
@@ -318,7 +335,7 @@ class StageBuilder:
                 rows.append(no_rolling(w_o))
         return rows
 
-    def _cones(self, z, p, mode: NodeMode) -> list[ca.SX]:
+    def _inequalities(self, z, p, mode: NodeMode) -> list[ca.SX]:
         """Inequalities (>= 0) of (3) at node k."""
         rows = []
         for i in range(2):
@@ -338,6 +355,19 @@ class StageBuilder:
             half = self.obj.half_extents
             rows.append(friction_cone_cop(w[0:3], w[3:6], R_o, self.obj.friction, *half))
         return rows
+
+    def _object_environment(self, z: ca.SX) -> ca.SX:
+        """(12) of each corner of the object in each obstacle."""
+        R_o, p_o, _ = self._object_frame(z)
+        half = np.r_[self.obj.half_extents, self.obj.com[2]]
+        corners = [p_o + R_o @ ca.DM(c) for c in box_corners(half)]
+        cost = ca.SX(0)
+        for obstacle in self.obstacles:
+            R, centre, box = ca.DM(obstacle.rotation), ca.DM(obstacle.centre), obstacle.half_extents
+            for c in corners:
+                p = sphere_box_penetration(c, 0.0, centre, R, box, self.collision)
+                cost += penetration_penalty(p)
+        return cost
 
     def node_cost(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> ca.SX:
         """Node k's share of (8) plus the keyframe and goal costs its parameters switch on."""
@@ -377,19 +407,36 @@ class StageBuilder:
             qo = _var(z, "object_q")
             cost += _par(p, "goal_on") * object_goal_cost(w, qo, _par(p, "goal"))
             cost += w.object_upright * ca.sumsqr(qo[3:5])
-            cost += self._object_collisions(z)
-        return cost
+        return cost + w.collision * self._collision_penalties(z, mode)
 
-    def _object_collisions(self, z: ca.SX) -> ca.SX:
-        """(12) between each body point and the object's ellipsoid."""
-        R_o, p_o, _ = self._object_frame(z)
-        centre = p_o + R_o @ ca.DM(self.obj.com)
-        half = np.r_[self.obj.half_extents, self.obj.com[2]]
-        points = _kin(z, "body_points")
-        cost = 0
-        for k, (_, _, radius) in enumerate(BODY_POINTS):
-            axes = (half + radius) * self.w.collision_scale
-            cost += penetration_penalty(self.w, points[3 * k : 3 * k + 3], centre, R_o, axes)
+    def _collision_penalties(self, z: ca.SX, mode: NodeMode) -> ca.SX:
+        """(12) of the body points, and of the palms not touching the object, in the object;
+        (12) of the object's corners while it is carried, and of the palms, in the obstacles."""
+        cfg = self.collision
+        palms = [(self._palm(z, i)[0], self.palm_radius) for i in range(2)]
+        cost = ca.SX(0)
+        if cfg.object_body:
+            R_o, p_o, _ = self._object_frame(z)
+            centre = p_o + R_o @ ca.DM(self.obj.com)
+            half = np.r_[self.obj.half_extents, self.obj.com[2]]
+            points = _kin(z, "body_points")
+            spheres = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
+            spheres += [palms[i] for i in range(2) if not mode.hands[i]]
+            for point, radius in spheres:
+                p = sphere_box_penetration(point, radius, centre, R_o, half, cfg)
+                cost += penetration_penalty(p)
+        if cfg.object_environment and mode.object_active and not mode.object_supported:
+            cost += self._object_environment(z)
+        if cfg.hands_environment:
+            for obstacle in self.obstacles:
+                R, centre, box = (
+                    ca.DM(obstacle.rotation),
+                    ca.DM(obstacle.centre),
+                    obstacle.half_extents,
+                )
+                for point, radius in palms:
+                    p = sphere_box_penetration(point, radius, centre, R, box, cfg)
+                    cost += penetration_penalty(p)
         return cost
 
     def _stage(
@@ -400,7 +447,7 @@ class StageBuilder:
         equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(
             z, z1, p1, mode, mode_next
         )
-        inequalities = self._cones(z, p, mode)
+        inequalities = self._inequalities(z, p, mode)
         eq = ca.vertcat(*equalities)
         ineq = ca.vertcat(*inequalities) if inequalities else ca.SX(0, 1)
         cost = self.node_cost(z, p, mode)

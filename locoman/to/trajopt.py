@@ -15,6 +15,7 @@ import pinocchio as pin
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.rotations import matrix_to_rpy
+from locoman.to.collision import CollisionCfg, Obstacle
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
@@ -53,6 +54,7 @@ class TOInputs:
         keyframes: One per subtask, in plan order.
         hand_points: (2, 3) left and right hand contacts in the object frame [m].
         hand_frames: (2, 3, 3) their contact frames in the object frame (z: outward normal).
+        obstacles: The scene's fixed boxes (tables, shelves) for the collision terms.
     """
 
     q_start: np.ndarray
@@ -61,6 +63,7 @@ class TOInputs:
     keyframes: Sequence[Keyframe]
     hand_points: np.ndarray
     hand_frames: np.ndarray
+    obstacles: tuple[Obstacle, ...] = ()
 
 
 @dataclasses.dataclass
@@ -323,7 +326,7 @@ class TrajectoryOptimizer:
 
     Args:
         inputs: The scenario.
-        schedule_cfg, weights, contact, solver: Settings.
+        schedule_cfg, weights, contact, collision, solver: Settings.
         cache_dir: Where compiled derivatives are cached (``solver.compile``).
     """
 
@@ -333,6 +336,7 @@ class TrajectoryOptimizer:
         schedule_cfg: ScheduleCfg,
         weights: CostWeights,
         contact: ContactCfg,
+        collision: CollisionCfg,
         solver: SolverCfg,
         cache_dir: Path,
     ) -> None:
@@ -341,19 +345,8 @@ class TrajectoryOptimizer:
         self.modes = node_modes(self.schedule)
         model = g1.g1_pinocchio_model()
         self.kin = SymbolicKinematics(model)
-        frames = contact_frames()
-        sole_centre = frames.sole["left_sole"]
-        self.sole_half = sole_half = frames.sole_half_extents
-        palms = np.array([frames.palm["left_palm"], frames.palm["right_palm"]])
         builder = StageBuilder(
-            self.kin,
-            inputs.obj,
-            sole_centre,
-            sole_half,
-            palms,
-            frames.palm_radius,
-            weights,
-            contact,
+            self.kin, inputs.obj, contact_frames(), weights, contact, collision, inputs.obstacles
         )
         n = self.schedule.nodes
         keys: dict[tuple, list[int]] = {}
@@ -361,6 +354,9 @@ class TrajectoryOptimizer:
             keys.setdefault((self.modes[k], self.modes[k + 1], k == n - 2), []).append(k)
         groups = [builder.group(*key, np.array(stages)) for key, stages in keys.items()]
         groups.append(builder.kinematics_group(np.arange(n)))
+        self_collision = builder.self_collision_group(np.arange(1, n))
+        if self_collision is not None:
+            groups.append(self_collision)
         self.kinematics = builder.kinematics
         ipopt = {
             "max_iter": solver.max_iterations,

@@ -1,0 +1,225 @@
+"""Collision avoidance of paper A, Sec. IV-D: the scaled penetration (11) and its penalty (12).
+
+The paper scales a point's distance d from the centroid of the penetrated body, an
+ellipsoid, and asks p = d^2 - 1 >= 0 (11). That is what the G1's links get: each is a chain
+of spheres (its MuJoCo collision capsules, as placo uses them), and two spheres are kept
+apart by (11) with d = |c_a - c_b| / (r_a + r_b + margin).
+
+Boxes (a table, the carried box) are poorly covered by ellipsoids: enclosing the table puts
+its own load inside, inscribing it misses the corners, and a superquadric norm errs by a
+fraction of each half size, centimetres on a table's height. For a box we scale a smooth
+clearance instead, c(x) ~ max_i (|x_i| - a_i), the box's signed distance on its faces
+(log-sum-exp with a few millimetres of smoothing): a sphere of radius r is outside when
+c >= r + margin, and p = (c - r - margin) / L takes the place of (11)'s d^2 - 1, with one
+length L for every pair, so that a centimetre costs the same everywhere.
+
+Which pairs are checked is configuration (:class:`CollisionCfg`): the paper adds a minimal
+set per scenario, since every pair makes the problem less convex.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import casadi as ca
+import mujoco
+import numpy as np
+
+from locoman.scene import g1
+from locoman.scene.rotations import rpy_to_matrix
+
+# The links whose spheres the default self-collision pairs use; the pairs measured most in
+# MuJoCo replays of tiny: the arms against the torso and the hips, the knees against each
+# other (paper A, S2: "between the knees when walking").
+_ARM_LINKS = ("shoulder_yaw_link", "elbow_link", "wrist_yaw_link", "rubber_hand")
+_TRUNK_LINKS = ("torso_link", "pelvis", "{side}_hip_roll_link", "{side}_hip_yaw_link")
+
+
+def _default_self_pairs() -> list[list[str]]:
+    pairs = []
+    for side in ("left", "right"):
+        for arm in _ARM_LINKS:
+            for trunk in _TRUNK_LINKS:
+                if arm == "shoulder_yaw_link" and trunk != "torso_link":
+                    continue
+                pairs.append([f"{side}_{arm}", trunk.format(side=side)])
+    pairs.append(["left_knee_link", "right_knee_link"])
+    return pairs
+
+
+@dataclasses.dataclass
+class CollisionCfg:
+    """The collision terms of the TO (paper A, Sec. IV-D).
+
+    Attributes:
+        self_pairs: Link pairs of the G1 kept apart by the penalty (12) between their
+            spheres.
+        object_body: (12) between the robot's body points, and each palm while it does not
+            touch the object, and the object.
+        hands_environment: (12) between the palms and every fixed object's bounding box.
+        object_environment: (12) between the corners of the object, while no support holds
+            it, and every fixed object's bounding box. (As a hard constraint (11) the four
+            bottom corners of a level box are dependent, and IPOPT stalled.)
+        margin_m: Clearance added to every pair [m].
+        smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
+            the clearance by up to ln(3) times this, so keep it below ``margin_m``.
+        length_m: L, the length that scales a box's penetration [m].
+    """
+
+    self_pairs: list[list[str]] = dataclasses.field(default_factory=_default_self_pairs)
+    object_body: bool = True
+    hands_environment: bool = True
+    object_environment: bool = True
+    margin_m: float = 0.01
+    smoothing_m: float = 0.004
+    length_m: float = 0.1
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        model = g1.g1_mjmodel()
+        links = {model.body(b).name for b in range(model.nbody)}
+        unknown = sorted({name for pair in self.self_pairs for name in pair} - links)
+        if any(len(pair) != 2 for pair in self.self_pairs) or unknown:
+            errors.append(("self_pairs", f"needs pairs of G1 link names; unknown: {unknown}"))
+        if self.length_m <= 0.0:
+            errors.append(("length_m", "must be > 0 m"))
+        if self.smoothing_m <= 0.0 or self.margin_m < np.log(3.0) * self.smoothing_m:
+            errors.append(("margin_m", "needs smoothing_m > 0 and margin_m >= ln(3) smoothing_m"))
+        return errors
+
+
+@dataclasses.dataclass(frozen=True)
+class Obstacle:
+    """A fixed box of the scene.
+
+    Attributes:
+        name: ``<object>/<primitive>``.
+        centre: (3,) world [m].
+        yaw: About world z [rad].
+        half_extents: (3,) [m].
+    """
+
+    name: str
+    centre: np.ndarray
+    yaw: float
+    half_extents: np.ndarray
+
+    @property
+    def rotation(self) -> np.ndarray:
+        return rpy_to_matrix(np.array([0.0, 0.0, self.yaw]))
+
+
+def obstacles_from_objects(objects: dict[str, dict]) -> tuple[Obstacle, ...]:
+    """One box per fixed object of the scene (``objects.json``): the bounding box of its
+    primitives in the object's frame (a table's top and legs make one block, so that nothing
+    passes under the top)."""
+    out = []
+    for name, spec in sorted(objects.items()):
+        if spec["movable"]:
+            continue
+        lows, highs = [], []
+        for prim in spec["primitives"]:
+            if prim["shape"] != "box":
+                raise ValueError(
+                    f"{name}/{prim['name']}: the TO's collision model knows boxes, "
+                    f"not {prim['shape']!r}"
+                )
+            lows.append(np.asarray(prim["pos"]) - prim["size"])
+            highs.append(np.asarray(prim["pos"]) + prim["size"])
+        if not lows:
+            continue
+        low, high = np.min(lows, axis=0), np.max(highs, axis=0)
+        R = rpy_to_matrix(np.array([0.0, 0.0, spec["yaw_rad"]]))
+        centre = np.asarray(spec["pos_m"], dtype=float) + R @ (0.5 * (low + high))
+        out.append(Obstacle(name, centre, float(spec["yaw_rad"]), 0.5 * (high - low)))
+    return tuple(out)
+
+
+def box_clearance(
+    point: ca.SX, centre: ca.SX, R: ca.SX, half_extents: np.ndarray, smoothing: float
+) -> ca.SX:
+    """Smooth signed clearance [m] of ``point`` from a box (centre, axes R, half extents):
+    tau ln sum_i exp((|x_i| - a_i) / tau), x = R^T (point - centre), |.| smoothed over 1 mm.
+    Negative inside; on the faces the signed distance, up to tau ln 3."""
+    local = R.T @ (point - centre)
+    excess = ca.sqrt(local**2 + 1e-6) - ca.DM(half_extents)
+    return smoothing * ca.logsumexp(excess / smoothing)
+
+
+def sphere_box_penetration(
+    centre_sphere: ca.SX, radius: float, box_centre: ca.SX, R: ca.SX, half: np.ndarray, cfg
+) -> ca.SX:
+    """(11) for a sphere (radius 0: a point) and a box: p = (c - r - margin) / L, c the
+    clearance of its centre."""
+    clearance = box_clearance(centre_sphere, box_centre, R, half, cfg.smoothing_m)
+    return (clearance - radius - cfg.margin_m) / cfg.length_m
+
+
+def sphere_sphere_penetration(a: ca.SX, b: ca.SX, radius: float) -> ca.SX:
+    """(11) of two spheres whose radii (and margin) sum to ``radius``: d = |a - b| / radius,
+    p = d^2 - 1."""
+    return ca.sumsqr(a - b) / radius**2 - 1.0
+
+
+def penetration_penalty(p: ca.SX) -> ca.SX:
+    """(12): p^2 where p < 0, 0 otherwise."""
+    return ca.fmin(p, 0.0) ** 2
+
+
+def box_corners(half_extents: np.ndarray, bottom_at_origin: bool = True) -> np.ndarray:
+    """(8, 3) corners of a box in its frame [m]; the frame at the bottom face's centre, or
+    at the centre."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    corners = signs * np.asarray(half_extents)
+    if bottom_at_origin:
+        corners[:, 2] += half_extents[2]
+    return corners
+
+
+@dataclasses.dataclass(frozen=True)
+class Sphere:
+    """A collision sphere fixed to a link: centre in the link frame [m], radius [m]."""
+
+    link: str
+    centre: np.ndarray
+    radius: float
+
+
+@functools.cache
+def link_spheres(link: str) -> tuple[Sphere, ...]:
+    """The spheres of a G1 link's collision capsules."""
+    model = g1.g1_mjmodel()
+    body = model.body(link).id
+    spheres = []
+    for geom in range(model.ngeom):
+        if model.geom_bodyid[geom] != body or model.geom_group[geom] != g1.COLLISION_GROUP:
+            continue
+        if model.geom_type[geom] != mujoco.mjtGeom.mjGEOM_CAPSULE:
+            continue
+        spheres += [Sphere(link, c, r) for c, r in g1.capsule_spheres(model, geom)]
+    if not spheres:
+        raise ValueError(f"the G1 link {link!r} has no collision capsule")
+    return tuple(spheres)
+
+
+def self_collision_cost(frame_pose, pairs: list[list[str]], margin: float) -> ca.SX:
+    """Sum of (12) between the spheres of each link pair, each sphere pair an ellipsoid
+    (a ball) of radius r_a + r_b + margin about one centre (11).
+
+    Args:
+        frame_pose: name -> (R, p) symbolic world pose of a link.
+        pairs: Link pairs.
+        margin: [m].
+    """
+    cost = ca.SX(0)
+    poses = {}
+    for link in {name for pair in pairs for name in pair}:
+        R, p = frame_pose(link)
+        poses[link] = [(p + R @ ca.DM(s.centre), s.radius) for s in link_spheres(link)]
+    for a, b in pairs:
+        for ca_, ra in poses[a]:
+            for cb, rb in poses[b]:
+                p = sphere_sphere_penetration(ca_, cb, ra + rb + margin)
+                cost += penetration_penalty(p)
+    return cost

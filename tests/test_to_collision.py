@@ -1,0 +1,181 @@
+"""Collision terms (paper A, Sec. IV-D): the scaled penetration (11), its penalty (12), the
+G1's collision spheres and the scene's obstacles."""
+
+from __future__ import annotations
+
+import casadi as ca
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from locoman.retarget.robot import contact_frames
+from locoman.scene import g1
+from locoman.to.collision import (
+    CollisionCfg,
+    box_clearance,
+    box_corners,
+    link_spheres,
+    obstacles_from_objects,
+    penetration_penalty,
+    self_collision_cost,
+    sphere_box_penetration,
+    sphere_sphere_penetration,
+)
+from locoman.to.kinematics import SymbolicKinematics
+
+HALF = np.array([0.3, 0.2, 0.05])
+CFG = CollisionCfg()
+_x, _c = ca.SX.sym("x", 3), ca.SX.sym("c", 3)
+_R = ca.SX.sym("R", 3, 3)
+CLEARANCE = ca.Function("c", [_x, _c, _R], [box_clearance(_x, _c, _R, HALF, CFG.smoothing_m)])
+coordinate = st.floats(-1.0, 1.0)
+
+
+def _yawed(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _signed_distance(local: np.ndarray) -> float:
+    """Exact signed distance of a point from the box (frame-local coordinates) [m]."""
+    excess = np.abs(local) - HALF
+    outside = np.linalg.norm(np.maximum(excess, 0.0))
+    return float(outside if outside > 0.0 else excess.max())
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.tuples(coordinate, coordinate, coordinate), st.floats(-3.0, 3.0))
+def test_box_clearance_is_the_face_distance_up_to_its_smoothing(local, yaw):
+    R, centre = _yawed(yaw), np.array([0.5, -1.0, 0.7])
+    local = np.array(local)
+    c = float(CLEARANCE(centre + R @ local, centre, R))
+    face = float(np.max(np.abs(local) - HALF))
+    assert face - 1e-9 <= c <= face + CFG.smoothing_m * np.log(3.0) + 1e-3
+    # Never more than the true distance plus the smoothing: p >= 0 keeps a sphere out.
+    assert c <= _signed_distance(local) + CFG.smoothing_m * np.log(3.0) + 1e-3
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.tuples(coordinate, coordinate, coordinate), st.floats(0.0, 0.1))
+def test_a_sphere_with_nonnegative_penetration_is_outside_the_box(local, radius):
+    local = np.array(local)
+    p = ca.Function(
+        "p", [_x], [sphere_box_penetration(_x, radius, ca.DM.zeros(3), ca.DM.eye(3), HALF, CFG)]
+    )
+    if float(p(local)) >= 0.0:
+        assert _signed_distance(local) >= radius
+    if _signed_distance(local) < radius - 1e-3:
+        assert float(p(local)) < 0.0
+
+
+def test_two_spheres_follow_the_papers_scaled_penetration():
+    a, b = np.zeros(3), np.array([0.3, 0.0, 0.4])
+    p = sphere_sphere_penetration(ca.DM(a), ca.DM(b), 0.25)
+    assert float(p) == pytest.approx((0.5 / 0.25) ** 2 - 1.0)
+
+
+def test_the_penalty_is_the_square_of_the_penetration_and_zero_outside():
+    p = ca.SX.sym("p")
+    penalty = ca.Function("l", [p], [penetration_penalty(p)])
+    assert float(penalty(-0.3)) == pytest.approx(0.09)
+    assert float(penalty(0.4)) == 0.0
+
+
+def test_box_corners_span_the_box_from_its_bottom_face():
+    corners = box_corners(HALF)
+    assert corners.shape == (8, 3)
+    assert np.allclose(corners.min(axis=0), [-0.3, -0.2, 0.0])
+    assert np.allclose(corners.max(axis=0), [0.3, 0.2, 0.1])
+
+
+def test_link_spheres_cover_the_capsule_axis_ends():
+    model = g1.g1_mjmodel()
+    for link in ("torso_link", "left_knee_link", "right_rubber_hand"):
+        spheres = link_spheres(link)
+        geom = next(
+            g
+            for g in range(model.ngeom)
+            if model.body(model.geom_bodyid[g]).name == link
+            and model.geom_group[g] == g1.COLLISION_GROUP
+        )
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[geom])
+        ends = [
+            model.geom_pos[geom] + s * model.geom_size[geom][1] * rot.reshape(3, 3)[:, 2]
+            for s in (-1, 1)
+        ]
+        for end in ends:
+            assert min(np.linalg.norm(s.centre - end) for s in spheres) < 1e-9
+        gaps = np.linalg.norm(np.diff([s.centre for s in spheres], axis=0), axis=1)
+        assert np.all(gaps <= spheres[0].radius + 1e-9)
+
+
+def _mujoco_self_contacts(q35: np.ndarray) -> set[frozenset[str]]:
+    model = g1.g1_mjmodel()
+    data = mujoco.MjData(model)
+    data.qpos[:] = g1.pin_to_mujoco_qpos(g1.q35_to_pin(q35), model, data.qpos)
+    mujoco.mj_forward(model, data)
+    name = lambda geom: model.body(model.geom_bodyid[geom]).name  # noqa: E731
+    return {
+        frozenset((name(c.geom1), name(c.geom2)))
+        for c in data.contact[: data.ncon]
+        if c.dist < 0.0 and "floor" not in (model.geom(c.geom1).name, model.geom(c.geom2).name)
+    }
+
+
+@pytest.mark.parametrize("roll", [-0.2, -0.6])
+def test_self_collision_penalises_what_mujoco_finds_in_collision(roll):
+    """Standing, neither MuJoCo nor the penalty finds a collision; with the left arm swung
+    into the torso both do."""
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    pairs = CollisionCfg().self_pairs
+    cost = ca.Function("c", [kin.q], [self_collision_cost(kin.frame_pose, pairs, 0.0)])
+    standing = g1.standing_q35()
+    assert float(cost(standing)) == 0.0
+    assert not _mujoco_self_contacts(standing)
+    hugging = standing.copy()
+    hugging[6 + g1.G1_JOINT_NAMES.index("left_shoulder_roll_joint")] = roll
+    assert frozenset(("left_shoulder_yaw_link", "torso_link")) in _mujoco_self_contacts(hugging)
+    assert float(cost(hugging)) > 0.0
+
+
+def test_an_obstacle_is_the_bounding_box_of_a_fixed_object_in_the_world():
+    top = {"name": "top", "shape": "box", "pos": [0.1, 0.0, 0.7], "size": [0.3, 0.2, 0.01]}
+    leg = {"name": "leg", "shape": "box", "pos": [0.35, 0.15, 0.35], "size": [0.03, 0.03, 0.35]}
+    objects = {
+        "table": {
+            "movable": False,
+            "pos_m": [1.0, 2.0, 0.0],
+            "yaw_rad": np.pi / 2,
+            "primitives": [top, leg],
+        },
+        "box": {"movable": True, "pos_m": [0, 0, 0], "yaw_rad": 0.0, "primitives": []},
+    }
+    (table,) = obstacles_from_objects(objects)
+    assert table.name == "table"
+    assert np.allclose(table.half_extents, [0.3, 0.2, 0.355])
+    # Centre (0.1, 0, 0.355) in the table frame, turned by 90 degrees.
+    assert np.allclose(table.centre, [1.0, 2.1, 0.355])
+    assert np.allclose(table.rotation @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    objects["table"]["primitives"][0]["shape"] = "cylinder"
+    with pytest.raises(ValueError, match="knows boxes"):
+        obstacles_from_objects(objects)
+
+
+def test_config_check_names_what_is_wrong():
+    assert CollisionCfg().check() == []
+    errors = dict(CollisionCfg(self_pairs=[["pelvis", "nose"]], smoothing_m=0.02).check())
+    assert "nose" in errors["self_pairs"]
+    assert "ln(3)" in errors["margin_m"]
+
+
+def test_palm_frames_are_square_to_the_hand_capsule():
+    frames = contact_frames()
+    for name, axes in frames.palm_axes.items():
+        assert np.allclose(axes.T @ axes, np.eye(3), atol=1e-12)
+        assert np.linalg.det(axes) == pytest.approx(1.0)
+        # The palm faces away from the body: -y of the left hand link, +y of the right.
+        side = -1.0 if name.startswith("left") else 1.0
+        assert side * axes[1, 2] > 0.9
