@@ -14,6 +14,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.to.collision import (
     CollisionCfg,
+    Obstacle,
     box_clearance,
     box_corners,
     link_spheres,
@@ -22,6 +23,7 @@ from locoman.to.collision import (
     self_collision_cost,
     sphere_box_penetration,
     sphere_sphere_penetration,
+    vertical_edge_points,
 )
 from locoman.to.kinematics import SymbolicKinematics
 
@@ -179,3 +181,15 @@ def test_palm_frames_are_square_to_the_hand_capsule():
         # The palm faces away from the body: -y of the left hand link, +y of the right.
         side = -1.0 if name.startswith("left") else 1.0
         assert side * axes[1, 2] > 0.9
+
+
+def test_vertical_edge_points_run_down_every_edge_at_most_the_spacing_apart():
+    table = Obstacle("t", np.array([1.0, 0.0, 0.36]), 0.3, np.array([0.3, 0.4, 0.36]))
+    points = vertical_edge_points(table, 0.1)
+    local = (points - table.centre) @ table.rotation
+    assert np.allclose(np.abs(local[:, :2]), table.half_extents[:2])
+    for x in (-0.3, 0.3):
+        for y in (-0.4, 0.4):
+            z = np.sort(local[np.isclose(local[:, 0], x) & np.isclose(local[:, 1], y), 2])
+            assert z[0] == pytest.approx(-0.36) and z[-1] == pytest.approx(0.36)
+            assert np.diff(z).max() <= 0.1 + 1e-12

@@ -59,8 +59,9 @@ class CollisionCfg:
             touch the object, and the object.
         hands_environment: (12) between the palms and every fixed object's bounding box.
         object_environment: (12) between the corners of the object, while no support holds
-            it, and every fixed object's bounding box. (As a hard constraint (11) the four
-            bottom corners of a level box are dependent, and IPOPT stalled.)
+            it, and every fixed object's bounding box, and between the obstacles' vertical
+            edges and the object. (As a hard constraint (11) the four bottom corners of a
+            level box are dependent, and IPOPT stalled.)
         margin_m: Clearance added to every pair [m].
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.
@@ -175,6 +176,17 @@ def box_corners(half_extents: np.ndarray, bottom_at_origin: bool = True) -> np.n
     if bottom_at_origin:
         corners[:, 2] += half_extents[2]
     return corners
+
+
+def vertical_edge_points(obstacle: Obstacle, spacing: float) -> np.ndarray:
+    """(n, 3) world points along the four vertical edges of an obstacle, from its top
+    corners down, at most ``spacing`` [m] apart: an edge that enters a carried box's side
+    between the box's corners is caught by one of them."""
+    a, b, c = obstacle.half_extents
+    count = int(np.ceil(2.0 * c / spacing)) + 1
+    heights = np.linspace(c, -c, count)
+    local = np.array([[x, y, h] for x in (-a, a) for y in (-b, b) for h in heights])
+    return local @ obstacle.rotation.T + obstacle.centre
 
 
 @dataclasses.dataclass(frozen=True)

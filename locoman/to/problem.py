@@ -38,6 +38,7 @@ from locoman.to.collision import (
     penetration_penalty,
     self_collision_cost,
     sphere_box_penetration,
+    vertical_edge_points,
 )
 from locoman.to.contacts import (
     friction_cone_cop,
@@ -357,15 +358,20 @@ class StageBuilder:
         return rows
 
     def _object_environment(self, z: ca.SX) -> ca.SX:
-        """(12) of each corner of the object in each obstacle."""
+        """(12) of each corner of the object in each obstacle, and of the obstacles'
+        vertical edges in the object."""
         R_o, p_o, _ = self._object_frame(z)
         half = np.r_[self.obj.half_extents, self.obj.com[2]]
         corners = [p_o + R_o @ ca.DM(c) for c in box_corners(half)]
+        centre = p_o + R_o @ ca.DM(self.obj.com)
         cost = ca.SX(0)
         for obstacle in self.obstacles:
-            R, centre, box = ca.DM(obstacle.rotation), ca.DM(obstacle.centre), obstacle.half_extents
+            R, middle, box = ca.DM(obstacle.rotation), ca.DM(obstacle.centre), obstacle.half_extents
             for c in corners:
-                p = sphere_box_penetration(c, 0.0, centre, R, box, self.collision)
+                p = sphere_box_penetration(c, 0.0, middle, R, box, self.collision)
+                cost += penetration_penalty(p)
+            for point in vertical_edge_points(obstacle, half[2]):
+                p = sphere_box_penetration(ca.DM(point), 0.0, centre, R_o, half, self.collision)
                 cost += penetration_penalty(p)
         return cost
 
