@@ -168,13 +168,11 @@ def penetration_penalty(p: ca.SX) -> ca.SX:
     return ca.fmin(p, 0.0) ** 2
 
 
-def box_corners(half_extents: np.ndarray, bottom_at_origin: bool = True) -> np.ndarray:
-    """(8, 3) corners of a box in its frame [m]; the frame at the bottom face's centre, or
-    at the centre."""
+def box_corners(half_extents: np.ndarray) -> np.ndarray:
+    """(8, 3) corners of a box in its frame, which sits at the bottom face's centre [m]."""
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     corners = signs * np.asarray(half_extents)
-    if bottom_at_origin:
-        corners[:, 2] += half_extents[2]
+    corners[:, 2] += half_extents[2]
     return corners
 
 
