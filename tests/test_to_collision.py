@@ -19,8 +19,8 @@ from locoman.to.collision import (
     box_corners,
     link_spheres,
     obstacles_from_objects,
-    penetration_penalty,
-    self_collision_cost,
+    penetration_residual,
+    self_collision_residuals,
     sphere_box_penetration,
     sphere_sphere_penetration,
     vertical_edge_points,
@@ -80,7 +80,7 @@ def test_two_spheres_follow_the_papers_scaled_penetration():
 
 def test_the_penalty_is_the_square_of_the_penetration_and_zero_outside():
     p = ca.SX.sym("p")
-    penalty = ca.Function("l", [p], [penetration_penalty(p)])
+    penalty = ca.Function("l", [p], [penetration_residual(p) ** 2])
     assert float(penalty(-0.3)) == pytest.approx(0.09)
     assert float(penalty(0.4)) == 0.0
 
@@ -133,7 +133,8 @@ def test_self_collision_penalises_what_mujoco_finds_in_collision(roll):
     into the torso both do."""
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     pairs = CollisionCfg().self_pairs
-    cost = ca.Function("c", [kin.q], [self_collision_cost(kin.frame_pose, pairs, 0.0)])
+    residuals = self_collision_residuals(kin.frame_pose, pairs, 0.0)
+    cost = ca.Function("c", [kin.q], [ca.sumsqr(residuals)])
     standing = g1.standing_q35()
     assert float(cost(standing)) == 0.0
     assert not _mujoco_self_contacts(standing)

@@ -1,4 +1,5 @@
-"""The stage NLP's assembled derivatives against CasADi's own, on a small random problem."""
+"""The stage NLP's assembled derivatives against CasADi's own, on a small random problem:
+exact, but for the residuals' Gauss-Newton Hessian."""
 
 from __future__ import annotations
 
@@ -20,10 +21,12 @@ def _groups() -> list[StageGroup]:
     l_a = ca.sumsqr(z - p[0]) + z[0] * z1[2] ** 2
     g_b = ca.vertcat(z1[0] - z[0] * z[2], ca.cos(z1[1]) + z[1])
     l_b = ca.sumsqr(z1) * p1[1] + ca.exp(0.1 * z[2])
-    fa = ca.Function("stage_a", [z, z1, p, p1], [g_a, l_a])
-    fb = ca.Function("stage_b", [z, z1, p, p1], [g_b, l_b])
+    r_a = ca.vertcat(ca.fmin(z[1] * z1[2] - p[1], 0.0), ca.sin(z[0]) * p1[0])
+    fa = ca.Function("stage_a", [z, z1, p, p1], [g_a, l_a, r_a])
+    fb = ca.Function("stage_b", [z, z1, p, p1], [g_b, l_b, ca.SX(0, 1)])
     g_n = ca.vertcat(z[0] * ca.sin(z[2]) - p[0], z[1] ** 3)
-    fn = ca.Function("node", [z, p], [g_n, ca.exp(z[0] * p[1]) + z[1] * z[2]])
+    r_n = ca.cos(z[2]) * z[1]
+    fn = ca.Function("node", [z, p], [g_n, ca.exp(z[0] * p[1]) + z[1] * z[2], r_n])
     return [
         StageGroup(fa, np.array([0, 2, 3]), np.zeros(3), np.array([0.0, 0.0, np.inf])),
         StageGroup(fb, np.array([1, 4]), np.zeros(2), np.zeros(2)),
@@ -32,17 +35,18 @@ def _groups() -> list[StageGroup]:
 
 
 def _reference(groups: list[StageGroup]):
-    """The same NLP written out stage by stage, derived by CasADi."""
+    """The same NLP written out stage by stage: constraints, smooth cost, residuals."""
     x, p = ca.SX.sym("x", WIDTH * NODES), ca.SX.sym("p", PARAMS * NODES)
     Z, P = ca.reshape(x, WIDTH, NODES), ca.reshape(p, PARAMS, NODES)
-    g, f = [], 0
+    g, f, r = [], 0, []
     for group in groups:
         for k in group.stages:
             cols = range(k, k + group.span)
-            gk, lk = group.function(*[Z[:, c] for c in cols], *[P[:, c] for c in cols])
+            gk, lk, rk = group.function(*[Z[:, c] for c in cols], *[P[:, c] for c in cols])
             g.append(gk)
             f += lk
-    return x, p, ca.vertcat(*g), f
+            r.append(rk)
+    return x, p, ca.vertcat(*g), f, ca.vertcat(*r)
 
 
 @pytest.mark.parametrize("compiled", [False, True])
@@ -52,16 +56,19 @@ def test_assembled_derivatives_match_casadi(compiled: bool, tmp_path) -> None:
     groups = _groups()
     cache = tmp_path if compiled else None
     nlp = StageNLP(WIDTH, NODES, PARAMS, groups, {"print_level": 0, "sb": "yes"}, cache)
-    x, p, g, f = _reference(groups)
+    x, p, g, f_smooth, r = _reference(groups)
+    f = f_smooth + ca.sumsqr(r)
     lam_f, lam_g = ca.SX.sym("lf"), ca.SX.sym("lg", g.numel())
     rng = np.random.default_rng(0)
     xv, pv = rng.normal(size=x.numel()), rng.normal(size=p.numel())
     lfv, lgv = 0.7, rng.normal(size=g.numel())
     ref_jac = ca.Function("j", [x, p], [ca.jacobian(g, x)])(xv, pv)
     ref_grad = ca.Function("gr", [x, p], [ca.gradient(f, x)])(xv, pv)
-    ref_hess = ca.Function(
-        "h", [x, p, lam_f, lam_g], [ca.hessian(lam_f * f + ca.dot(lam_g, g), x)[0]]
-    )(xv, pv, lfv, lgv)
+    jac_r = ca.jacobian(r, x)
+    gauss_newton = ca.hessian(lam_f * f_smooth + ca.dot(lam_g, g), x)[0] + 2 * lam_f * (
+        jac_r.T @ jac_r
+    )
+    ref_hess = ca.Function("h", [x, p, lam_f, lam_g], [gauss_newton])(xv, pv, lfv, lgv)
     g_val, jac = nlp.oracles["jac_g"](xv, pv)
     f_val, grad = nlp.oracles["grad_f"](xv, pv)
     hess = nlp.oracles["hess_lag"](xv, pv, lfv, lgv)

@@ -163,9 +163,9 @@ def sphere_sphere_penetration(a: ca.SX, b: ca.SX, radius: float) -> ca.SX:
     return ca.sumsqr(a - b) / radius**2 - 1.0
 
 
-def penetration_penalty(p: ca.SX) -> ca.SX:
-    """(12): p^2 where p < 0, 0 otherwise."""
-    return ca.fmin(p, 0.0) ** 2
+def penetration_residual(p: ca.SX) -> ca.SX:
+    """The residual of (12): the penalty p^2 where p < 0, 0 otherwise, is its square."""
+    return ca.fmin(p, 0.0)
 
 
 def box_corners(half_extents: np.ndarray) -> np.ndarray:
@@ -213,16 +213,17 @@ def link_spheres(link: str) -> tuple[Sphere, ...]:
     return tuple(spheres)
 
 
-def self_collision_cost(frame_pose, pairs: list[list[str]], margin: float) -> ca.SX:
-    """Sum of (12) between the spheres of each link pair, each sphere pair an ellipsoid
-    (a ball) of radius r_a + r_b + margin about one centre (11).
+def self_collision_residuals(frame_pose, pairs: list[list[str]], margin: float) -> ca.SX:
+    """Residuals of (12) between the spheres of each link pair (the penalty is their sum of
+    squares), each sphere pair an ellipsoid (a ball) of radius r_a + r_b + margin about one
+    centre (11).
 
     Args:
         frame_pose: name -> (R, p) symbolic world pose of a link.
         pairs: Link pairs.
         margin: [m].
     """
-    cost = ca.SX(0)
+    residuals = []
     poses = {}
     for link in {name for pair in pairs for name in pair}:
         R, p = frame_pose(link)
@@ -231,5 +232,5 @@ def self_collision_cost(frame_pose, pairs: list[list[str]], margin: float) -> ca
         for ca_, ra in poses[a]:
             for cb, rb in poses[b]:
                 p = sphere_sphere_penetration(ca_, cb, ra + rb + margin)
-                cost += penetration_penalty(p)
-    return cost
+                residuals.append(penetration_residual(p))
+    return ca.vertcat(*residuals)

@@ -5,8 +5,12 @@ exact Hessian, one small SX function mapped over the nodes and given to IPOPT vi
 
 The decision vector is x = (z_0, ..., z_{N-1}), one block of ``width`` variables per node;
 the parameters are one column of ``n_params`` per node. A stage k couples z_k and z_{k+1}:
-``F(z_k, z_{k+1}, p_k, p_{k+1}) -> (g_k, l_k)``; a node function touches one node only:
-``F(z_k, p_k) -> (g_k, l_k)``. Stages or nodes with the same constraint kinds share one
+``F(z_k, z_{k+1}, p_k, p_{k+1}) -> (g_k, l_k, r_k)``; a node function touches one node
+only: ``F(z_k, p_k) -> (g_k, l_k, r_k)``. The stage's cost is l_k + ||r_k||^2: r_k are the
+residuals of the collision penalties (12), whose Hessian is taken as Gauss-Newton,
+2 J_r' J_r. Their exact Hessian adds 2 r ∇²r, negative wherever a penalty is active (r < 0
+and ∇²r of a distance is positive), which made IPOPT correct the inertia of every
+iteration with a large regularisation. Stages or nodes with the same constraint kinds share one
 function (a :class:`StageGroup`) mapped over them. Expensive node-local terms (the robot's
 kinematics) belong in a node function: its derivatives are half the size, and one function
 serves every node whatever the contact mode. For each group the Jacobian of g,
@@ -42,8 +46,8 @@ class StageGroup:
     """Stages (or nodes) sharing one function.
 
     Attributes:
-        function: ``(z, z_next, p, p_next) -> (g, l)`` for a stage, ``(z, p) -> (g, l)``
-            for a node function; SX.
+        function: ``(z, z_next, p, p_next) -> (g, l, r)`` for a stage, ``(z, p) -> (g, l, r)``
+            for a node function, the cost being l + ||r||^2; SX.
         stages: Stage indices k (a stage couples nodes k and k + 1), or node indices.
         lower: (rows,) lower bounds of g.
         upper: (rows,) upper bounds of g.
@@ -79,17 +83,23 @@ class NLPResult:
 
 
 def _derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
-    """Per-stage (g, l), (g, nz(J)), (l, grad l), nz(triu H) functions of one group."""
+    """Per-stage (g, l), (g, nz(J)), (l, grad l), nz(triu H) functions of one group; l is
+    the whole cost, H the exact Hessian of the Lagrangian but for the residuals' Gauss-Newton
+    part."""
     fn, span = group.function, group.span
     zs = [ca.SX.sym(f"z{i}", width) for i in range(span)]
     ps = [ca.SX.sym(f"p{i}", fn.size1_in(span)) for i in range(span)]
     lam, sigma = ca.SX.sym("lam", group.rows), ca.SX.sym("sigma")
-    g, cost = fn(*zs, *ps)
+    g, smooth, residuals = fn(*zs, *ps)
+    cost = smooth + ca.sumsqr(residuals)
     zz = ca.vertcat(*zs)
     args = [*zs, *ps]
     jac = ca.jacobian(g, zz)
     grad = ca.densify(ca.gradient(cost, zz))
-    hess = ca.triu(ca.hessian(sigma * cost + ca.dot(lam, g), zz)[0])
+    jac_r = ca.jacobian(residuals, zz)
+    hess = ca.triu(
+        ca.hessian(sigma * smooth + ca.dot(lam, g), zz)[0] + 2.0 * sigma * (jac_r.T @ jac_r)
+    )
     name = fn.name()
     return (
         ca.Function(f"{name}_val", args, [g, cost]),

@@ -18,8 +18,9 @@ stage functions then only combine them. A stage k couples nodes k and k + 1
 
 Newton's third law (6) holds by construction: the object receives minus each hand's wrench,
 at the same point. The cost is node k's (8): L_st or L_wk by the mode, L_reg, L_slack, the
-keyframe costs (9), (10) where the parameters switch them on, and the object goal; the last
-stage adds node N - 1's.
+keyframe costs (9), (10) where the parameters switch them on, and the object goal, with the
+collision penalties (12) as residuals (:mod:`locoman.to.nlp` takes their Hessian as
+Gauss-Newton); the last stage adds node N - 1's.
 """
 
 from __future__ import annotations
@@ -35,8 +36,8 @@ from locoman.to.collision import (
     CollisionCfg,
     Obstacle,
     box_corners,
-    penetration_penalty,
-    self_collision_cost,
+    penetration_residual,
+    self_collision_residuals,
     sphere_box_penetration,
     vertical_edge_points,
 )
@@ -216,7 +217,7 @@ class StageBuilder:
         """The node constraint tying the lifted kinematics to q, v at ``nodes``."""
         z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
         residual = _var(z, "kin") - self.kinematics(_var(z, "q"), _var(z, "v"))
-        fn = ca.Function("kinematics_node", [z, p], [residual, ca.SX(0)])
+        fn = ca.Function("kinematics_node", [z, p], [residual, ca.SX(0), ca.SX(0, 1)])
         rows = residual.numel()
         return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(rows), np.zeros(rows))
 
@@ -226,12 +227,13 @@ class StageBuilder:
         if not self.collision.self_pairs:
             return None
         z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
-        cost = self_collision_cost(
+        residuals = self_collision_residuals(
             self.kin.frame_pose, self.collision.self_pairs, self.collision.margin_m
         )
-        of_q = ca.Function("self_collision", [self.kin.q], [cost])
+        of_q = ca.Function("self_collision", [self.kin.q], [residuals])
+        scale = np.sqrt(self.w.collision)
         fn = ca.Function(
-            "self_collision_node", [z, p], [ca.SX(0, 1), self.w.collision * of_q(_var(z, "q"))]
+            "self_collision_node", [z, p], [ca.SX(0, 1), ca.SX(0), scale * of_q(_var(z, "q"))]
         )
         return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(0), np.zeros(0))
 
@@ -326,7 +328,10 @@ class StageBuilder:
                 if mode.hands[i]:
                     rows_i = ca.vertcat(rows_i[0:5], ca.dot(R_j[:, 2], w_palm - w_o))
                 rows.append(rows_i)
-        if mode_next.object_supported:
+        # Where the object starts to move its state at k and the wrench on it are fixed, so
+        # (1) alone fixes its state at k + 1: a support contact there too would repeat it
+        # and make the constraint Jacobian rank-deficient.
+        if mode_next.object_supported and mode.object_active:
             vo1 = _var(z1, "object_v")
             surface = _par(p1, "support_z")
             slack = _var(z1, "support_slack")
@@ -357,26 +362,27 @@ class StageBuilder:
             rows.append(friction_cone_cop(w[0:3], w[3:6], R_o, self.obj.friction, *half))
         return rows
 
-    def _object_environment(self, z: ca.SX) -> ca.SX:
-        """(12) of each corner of the object in each obstacle, and of the obstacles'
-        vertical edges in the object."""
+    def _object_environment(self, z: ca.SX) -> list[ca.SX]:
+        """Residuals of (12) of each corner of the object in each obstacle, and of the
+        obstacles' vertical edges in the object."""
         R_o, p_o, _ = self._object_frame(z)
         half = np.r_[self.obj.half_extents, self.obj.com[2]]
         corners = [p_o + R_o @ ca.DM(c) for c in box_corners(half)]
         centre = p_o + R_o @ ca.DM(self.obj.com)
-        cost = ca.SX(0)
+        residuals = []
         for obstacle in self.obstacles:
             R, middle, box = ca.DM(obstacle.rotation), ca.DM(obstacle.centre), obstacle.half_extents
             for c in corners:
                 p = sphere_box_penetration(c, 0.0, middle, R, box, self.collision)
-                cost += penetration_penalty(p)
+                residuals.append(penetration_residual(p))
             for point in vertical_edge_points(obstacle, half[2]):
                 p = sphere_box_penetration(ca.DM(point), 0.0, centre, R_o, half, self.collision)
-                cost += penetration_penalty(p)
-        return cost
+                residuals.append(penetration_residual(p))
+        return residuals
 
     def node_cost(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> ca.SX:
-        """Node k's share of (8) plus the keyframe and goal costs its parameters switch on."""
+        """Node k's share of (8) plus the keyframe and goal costs its parameters switch on,
+        but for the collision penalties (:meth:`collision_residuals`)."""
         w = self.w
         q, v = _var(z, "q"), _var(z, "v")
         com = _kin(z, "com")
@@ -413,14 +419,15 @@ class StageBuilder:
             qo = _var(z, "object_q")
             cost += _par(p, "goal_on") * object_goal_cost(w, qo, _par(p, "goal"))
             cost += w.object_upright * ca.sumsqr(qo[3:5])
-        return cost + w.collision * self._collision_penalties(z, mode)
+        return cost
 
-    def _collision_penalties(self, z: ca.SX, mode: NodeMode) -> ca.SX:
-        """(12) of the body points, and of the palms not touching the object, in the object;
-        (12) of the object's corners while it is carried, and of the palms, in the obstacles."""
+    def collision_residuals(self, z: ca.SX, mode: NodeMode) -> ca.SX:
+        """Residuals of the weighted penalties (12) at node k: of the body points, and of
+        the palms not touching the object, in the object; of the object's corners while it
+        is carried, and of the palms, in the obstacles."""
         cfg = self.collision
         palms = [(self._palm(z, i)[0], self.palm_radius) for i in range(2)]
-        cost = ca.SX(0)
+        residuals = []
         if cfg.object_body:
             R_o, p_o, _ = self._object_frame(z)
             centre = p_o + R_o @ ca.DM(self.obj.com)
@@ -430,9 +437,9 @@ class StageBuilder:
             spheres += [palms[i] for i in range(2) if not mode.hands[i]]
             for point, radius in spheres:
                 p = sphere_box_penetration(point, radius, centre, R_o, half, cfg)
-                cost += penetration_penalty(p)
+                residuals.append(penetration_residual(p))
         if cfg.object_environment and mode.object_active and not mode.object_supported:
-            cost += self._object_environment(z)
+            residuals += self._object_environment(z)
         if cfg.hands_environment:
             for obstacle in self.obstacles:
                 R, centre, box = (
@@ -442,8 +449,8 @@ class StageBuilder:
                 )
                 for point, radius in palms:
                     p = sphere_box_penetration(point, radius, centre, R, box, cfg)
-                    cost += penetration_penalty(p)
-        return cost
+                    residuals.append(penetration_residual(p))
+        return np.sqrt(self.w.collision) * ca.vertcat(*residuals)
 
     def _stage(
         self, mode: NodeMode, mode_next: NodeMode, last: bool, name: str
@@ -457,9 +464,11 @@ class StageBuilder:
         eq = ca.vertcat(*equalities)
         ineq = ca.vertcat(*inequalities) if inequalities else ca.SX(0, 1)
         cost = self.node_cost(z, p, mode)
+        residuals = self.collision_residuals(z, mode)
         if last:
             cost += self.node_cost(z1, p1, mode_next)
-        fn = ca.Function(name, [z, z1, p, p1], [ca.vertcat(eq, ineq), cost])
+            residuals = ca.vertcat(residuals, self.collision_residuals(z1, mode_next))
+        fn = ca.Function(name, [z, z1, p, p1], [ca.vertcat(eq, ineq), cost, residuals])
         lower = np.zeros(eq.numel() + ineq.numel())
         upper = np.r_[np.zeros(eq.numel()), np.full(ineq.numel(), np.inf)]
         return fn, lower, upper

@@ -14,7 +14,7 @@ import pinocchio as pin
 
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
-from locoman.scene.rotations import matrix_to_rpy
+from locoman.scene.rotations import matrix_to_rpy, rpy_to_matrix
 from locoman.to.collision import CollisionCfg, Obstacle
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
@@ -233,6 +233,33 @@ def parameters(
     return P
 
 
+# Bounds that no motion of the task comes near; they keep IPOPT's steps where the model
+# means something (a Newton step along a weakly penalised direction, such as a contact force
+# [N], could otherwise jump by hundreds and tip the next iterate's Euler angles over).
+TILT_MAX = math.pi / 3  # base and object roll, pitch [rad]
+LINEAR_SPEED_MAX = 5.0  # base and object [m/s]
+ANGULAR_SPEED_MAX = 2.0 * math.pi  # base and object Euler rates [rad/s]
+WRENCH_LEVER = 0.5  # moment bound per newton of force bound [m]
+
+
+def _sanity_bounds(lo: np.ndarray, hi: np.ndarray, weight: float) -> None:
+    """:data:`TILT_MAX` and the speed bounds on the base and the object; every contact
+    force within twice the weight of robot and object [N], every moment within that times
+    :data:`WRENCH_LEVER`."""
+    for q_name, v_name in (("q", "v"), ("object_q", "object_v")):
+        q, v = VARIABLES[q_name].start, VARIABLES[v_name].start
+        lo[q + 3 : q + 5], hi[q + 3 : q + 5] = -TILT_MAX, TILT_MAX
+        lo[v : v + 3], hi[v : v + 3] = -LINEAR_SPEED_MAX, LINEAR_SPEED_MAX
+        lo[v + 3 : v + 6], hi[v + 3 : v + 6] = -ANGULAR_SPEED_MAX, ANGULAR_SPEED_MAX
+    force = 2.0 * weight
+    for name, count in (("foot_wrench", 2), ("hand_wrench", 2), ("support_wrench", 1)):
+        start = VARIABLES[name].start
+        for i in range(count):
+            f = start + 6 * i
+            lo[f : f + 3], hi[f : f + 3] = -force, force
+            lo[f + 3 : f + 6], hi[f + 3 : f + 6] = -WRENCH_LEVER * force, WRENCH_LEVER * force
+
+
 def bounds(
     inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -250,11 +277,12 @@ def bounds(
         -model.velocityLimit[6:, None],
         model.velocityLimit[6:, None],
     )
-    lo[q, 0] = hi[q, 0] = inputs.q_start
-    lo[v, 0] = hi[v, 0] = 0.0
     dt = VARIABLES["dt"].start
     lo[dt], hi[dt] = cfg.dt_bounds
     lo[dt, -1] = hi[dt, -1] = cfg.dt_bounds[0]
+    _sanity_bounds(lo, hi, (pin.computeTotalMass(model) + inputs.obj.mass) * GRAVITY)
+    lo[q, 0] = hi[q, 0] = inputs.q_start
+    lo[v, 0] = hi[v, 0] = 0.0
     rest = np.r_[0.0, 0.0, inputs.obj.mass * GRAVITY, 0.0, 0.0, 0.0]
     for k, mode in enumerate(modes):
         last = k == n - 1
@@ -289,12 +317,16 @@ def bounds(
     return lo, hi
 
 
+SQUEEZE_MARGIN = 2.0
+
+
 def initial_guess(
     inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg, robot_mass: float
 ) -> np.ndarray:
     """(WIDTH, N): Sec. IV-C.2's subtask-like warm start: each subtask's nodes at its
     keyframe (robot and object), at rest, the weight shared by the feet in contact and the
-    carried object's weight by the hands."""
+    carried object's weight by the hands, which squeeze it hard enough for their friction
+    cones (3a) to hold it, :data:`SQUEEZE_MARGIN` times over."""
     n = schedule.nodes
     X = np.zeros((WIDTH, n))
     X[VARIABLES["dt"]] = 0.5 * sum(cfg.dt_bounds)
@@ -309,9 +341,13 @@ def initial_guess(
         weight = robot_mass * GRAVITY
         if mode.carried:
             weight += inputs.obj.mass * GRAVITY
+            R_object = rpy_to_matrix(X[VARIABLES["object_q"], k][3:6])
+            half = 0.5 * inputs.obj.mass * GRAVITY
             for i in range(2):
                 s = VARIABLES["hand_wrench"].start + 6 * i
-                X[s + 2, k] = -0.5 * inputs.obj.mass * GRAVITY
+                normal = R_object @ inputs.hand_frames[i][:, 2]
+                squeeze = SQUEEZE_MARGIN * half / inputs.obj.friction
+                X[s : s + 3, k] = np.r_[0.0, 0.0, -half] + squeeze * normal
         elif mode.object_supported:
             X[VARIABLES["support_wrench"].start + 2, k] = inputs.obj.mass * GRAVITY
         down = [i for i in range(2) if mode.feet[i]]
