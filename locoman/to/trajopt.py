@@ -74,8 +74,8 @@ class SolverCfg:
         dt_bounds: Bounds of each time step [s].
         max_iterations: IPOPT's max_iter.
         tolerance: IPOPT's tol.
-        compile: Compile the kinematics' derivatives to C (cached by their hash) instead of
-            interpreting them: about 45 s once, then several times faster per iteration.
+        compile: Compile the derivatives to C (cached by their hash) instead of
+            interpreting them: about 2 minutes once, then several times faster per iteration.
         print_level: IPOPT's print level (5: one line per iteration, the progress).
         warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
             every node starts at the initial state.
