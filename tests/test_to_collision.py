@@ -78,11 +78,24 @@ def test_two_spheres_follow_the_papers_scaled_penetration():
     assert float(p) == pytest.approx((0.5 / 0.25) ** 2 - 1.0)
 
 
-def test_the_penalty_is_the_square_of_the_penetration_and_zero_outside():
+@given(st.floats(-2.0, 2.0))
+def test_the_penalty_is_the_square_of_the_smoothed_penetration(value):
+    """r = min(p, 0) within softness ln 2, and r' = sigmoid(-p / softness): continuous
+    (smooth) across p = 0, where the paper's form jumps in curvature."""
+    soft = 0.01
     p = ca.SX.sym("p")
-    penalty = ca.Function("l", [p], [penetration_residual(p) ** 2])
-    assert float(penalty(-0.3)) == pytest.approx(0.09)
-    assert float(penalty(0.4)) == 0.0
+    r = penetration_residual(p, soft)
+    fn = ca.Function("r", [p], [r, ca.jacobian(r, p)])
+    residual, slope = (float(x) for x in fn(value))
+    assert min(value, 0.0) - soft * np.log(2.0) - 1e-12 <= residual <= min(value, 0.0)
+    assert slope == pytest.approx(1.0 / (1.0 + np.exp(value / soft)), abs=1e-9)
+
+
+def test_the_penalty_is_the_papers_away_from_contact():
+    p = ca.SX.sym("p")
+    penalty = ca.Function("l", [p], [penetration_residual(p, 0.01) ** 2])
+    assert float(penalty(-0.3)) == pytest.approx(0.09, rel=1e-6)
+    assert float(penalty(0.4)) < 1e-30
 
 
 def test_box_corners_span_the_box_from_its_bottom_face():
@@ -133,15 +146,15 @@ def test_self_collision_penalises_what_mujoco_finds_in_collision(roll):
     into the torso both do."""
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     pairs = CollisionCfg().self_pairs
-    residuals = self_collision_residuals(kin.frame_pose, pairs, 0.0)
+    residuals = self_collision_residuals(kin.frame_pose, pairs, 0.0, 0.01)
     cost = ca.Function("c", [kin.q], [ca.sumsqr(residuals)])
     standing = g1.standing_q35()
-    assert float(cost(standing)) == 0.0
+    assert float(cost(standing)) < 1e-4  # (softness ln 2)^2 per pair at most, near contact
     assert not _mujoco_self_contacts(standing)
     hugging = standing.copy()
     hugging[6 + g1.G1_JOINT_NAMES.index("left_shoulder_roll_joint")] = roll
     assert frozenset(("left_shoulder_yaw_link", "torso_link")) in _mujoco_self_contacts(hugging)
-    assert float(cost(hugging)) > 0.0
+    assert float(cost(hugging)) > 1.0
 
 
 def test_an_obstacle_is_the_bounding_box_of_a_fixed_object_in_the_world():

@@ -66,6 +66,8 @@ class CollisionCfg:
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.
         length_m: L, the length that scales a box's penetration [m].
+        softness: Width, in p, over which (12)'s min(p, 0) is smoothed [-]
+            (:func:`penetration_residual`); 0.01 is about a millimetre on a box.
     """
 
     self_pairs: list[list[str]] = dataclasses.field(default_factory=_default_self_pairs)
@@ -75,6 +77,7 @@ class CollisionCfg:
     margin_m: float = 0.01
     smoothing_m: float = 0.004
     length_m: float = 0.1
+    softness: float = 0.01
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -85,6 +88,8 @@ class CollisionCfg:
             errors.append(("self_pairs", f"needs pairs of G1 link names; unknown: {unknown}"))
         if self.length_m <= 0.0:
             errors.append(("length_m", "must be > 0 m"))
+        if self.softness <= 0.0:
+            errors.append(("softness", "must be > 0"))
         if self.smoothing_m <= 0.0 or self.margin_m < np.log(3.0) * self.smoothing_m:
             errors.append(("margin_m", "needs smoothing_m > 0 and margin_m >= ln(3) smoothing_m"))
         return errors
@@ -163,9 +168,16 @@ def sphere_sphere_penetration(a: ca.SX, b: ca.SX, radius: float) -> ca.SX:
     return ca.sumsqr(a - b) / radius**2 - 1.0
 
 
-def penetration_residual(p: ca.SX) -> ca.SX:
-    """The residual of (12): the penalty p^2 where p < 0, 0 otherwise, is its square."""
-    return ca.fmin(p, 0.0)
+def penetration_residual(p: ca.SX, softness: float) -> ca.SX:
+    """The residual r of (12), whose square is the penalty: min(p, 0) smoothed over
+    ``softness`` (-softness ln(1 + exp(-p / softness)), written so that it cannot overflow).
+
+    The paper's p^2 for p < 0 is only once differentiable; with it IPOPT reached the
+    optimum of ``tiny`` at 69 nodes by iteration 160 and then cycled between a penalty's
+    active and inactive sides for 770 more. Smoothed, r and its Gauss-Newton curvature turn
+    on before contact; for |p| >> softness r is min(p, 0), and at p = 0 it is -softness ln 2.
+    """
+    return ca.fmin(p, 0.0) - softness * ca.log1p(ca.exp(-ca.fabs(p) / softness))
 
 
 def box_corners(half_extents: np.ndarray) -> np.ndarray:
@@ -213,7 +225,9 @@ def link_spheres(link: str) -> tuple[Sphere, ...]:
     return tuple(spheres)
 
 
-def self_collision_residuals(frame_pose, pairs: list[list[str]], margin: float) -> ca.SX:
+def self_collision_residuals(
+    frame_pose, pairs: list[list[str]], margin: float, softness: float
+) -> ca.SX:
     """Residuals of (12) between the spheres of each link pair (the penalty is their sum of
     squares), each sphere pair an ellipsoid (a ball) of radius r_a + r_b + margin about one
     centre (11).
@@ -222,6 +236,7 @@ def self_collision_residuals(frame_pose, pairs: list[list[str]], margin: float) 
         frame_pose: name -> (R, p) symbolic world pose of a link.
         pairs: Link pairs.
         margin: [m].
+        softness: Of :func:`penetration_residual` [-].
     """
     residuals = []
     poses = {}
@@ -232,5 +247,5 @@ def self_collision_residuals(frame_pose, pairs: list[list[str]], margin: float) 
         for ca_, ra in poses[a]:
             for cb, rb in poses[b]:
                 p = sphere_sphere_penetration(ca_, cb, ra + rb + margin)
-                residuals.append(penetration_residual(p))
+                residuals.append(penetration_residual(p, softness))
     return ca.vertcat(*residuals)

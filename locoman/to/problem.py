@@ -227,8 +227,9 @@ class StageBuilder:
         if not self.collision.self_pairs:
             return None
         z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
+        cfg = self.collision
         residuals = self_collision_residuals(
-            self.kin.frame_pose, self.collision.self_pairs, self.collision.margin_m
+            self.kin.frame_pose, cfg.self_pairs, cfg.margin_m, cfg.softness
         )
         of_q = ca.Function("self_collision", [self.kin.q], [residuals])
         scale = np.sqrt(self.w.collision)
@@ -374,10 +375,10 @@ class StageBuilder:
             R, middle, box = ca.DM(obstacle.rotation), ca.DM(obstacle.centre), obstacle.half_extents
             for c in corners:
                 p = sphere_box_penetration(c, 0.0, middle, R, box, self.collision)
-                residuals.append(penetration_residual(p))
+                residuals.append(penetration_residual(p, self.collision.softness))
             for point in vertical_edge_points(obstacle, half[2]):
                 p = sphere_box_penetration(ca.DM(point), 0.0, centre, R_o, half, self.collision)
-                residuals.append(penetration_residual(p))
+                residuals.append(penetration_residual(p, self.collision.softness))
         return residuals
 
     def node_cost(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> ca.SX:
@@ -437,7 +438,7 @@ class StageBuilder:
             spheres += [palms[i] for i in range(2) if not mode.hands[i]]
             for point, radius in spheres:
                 p = sphere_box_penetration(point, radius, centre, R_o, half, cfg)
-                residuals.append(penetration_residual(p))
+                residuals.append(penetration_residual(p, self.collision.softness))
         if cfg.object_environment and mode.object_active and not mode.object_supported:
             residuals += self._object_environment(z)
         if cfg.hands_environment:
@@ -449,7 +450,7 @@ class StageBuilder:
                 )
                 for point, radius in palms:
                     p = sphere_box_penetration(point, radius, centre, R, box, cfg)
-                    residuals.append(penetration_residual(p))
+                    residuals.append(penetration_residual(p, self.collision.softness))
         return np.sqrt(self.w.collision) * ca.vertcat(*residuals)
 
     def _stage(
