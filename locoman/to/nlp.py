@@ -1,4 +1,4 @@
-"""A multiple-shooting NLP whose constraints and costs are stage functions, with exact
+"""A multiple-shooting NLP whose constraints and costs are stage functions, with
 derivatives assembled from per-stage SX derivatives (issue 6's prototype: "a per-node
 exact Hessian, one small SX function mapped over the nodes and given to IPOPT via
 ``hess_lag``, was the fastest").
@@ -6,18 +6,19 @@ exact Hessian, one small SX function mapped over the nodes and given to IPOPT vi
 The decision vector is x = (z_0, ..., z_{N-1}), one block of ``width`` variables per node;
 the parameters are one column of ``n_params`` per node. A stage k couples z_k and z_{k+1}:
 ``F(z_k, z_{k+1}, p_k, p_{k+1}) -> (g_k, l_k, r_k)``; a node function touches one node
-only: ``F(z_k, p_k) -> (g_k, l_k, r_k)``. The stage's cost is l_k + ||r_k||^2: r_k are the
-residuals of the collision penalties (12), whose Hessian is taken as Gauss-Newton,
-2 J_r' J_r. Their exact Hessian adds 2 r ∇²r, negative wherever a penalty is active (r < 0
-and ∇²r of a distance is positive), which made IPOPT correct the inertia of every
-iteration with a large regularisation. Stages or nodes with the same constraint kinds share one
-function (a :class:`StageGroup`) mapped over them. Expensive node-local terms (the robot's
-kinematics) belong in a node function: its derivatives are half the size, and one function
-serves every node whatever the contact mode. For each group the Jacobian of g,
-the gradient of l and the Hessian of sigma l + lambda' g with respect to (z_k, z_{k+1}) are
-SX functions of one stage; the global matrices are their nonzeros scattered (and, where
-blocks overlap on z_{k+1}, summed) by constant index maps, so IPOPT's oracles cost N small
-evaluations and a sparse gather.
+only: ``F(z_k, p_k) -> (g_k, l_k, r_k)``. Stages or nodes with the same constraint kinds
+share one function (a :class:`StageGroup`) mapped over them. Expensive node-local terms
+(the robot's kinematics) belong in a node function: its derivatives are half the size, and
+one function serves every node whatever the contact mode.
+
+The cost of a stage is l_k + ||r_k||^2, r_k the residuals of the collision penalties (12).
+For each group the Jacobian of g, the gradient of the cost and the Hessian
+sigma ∇²l + ∇²(lambda' g) + 2 sigma J_r' J_r with respect to (z_k, z_{k+1}) are SX functions
+of one stage: exact, but for the residuals' Gauss-Newton part. Their exact Hessian adds
+2 r ∇²r, negative wherever a penalty acts (r < 0, and ∇²r of a distance is positive), and
+IPOPT had to regularise every iteration for it. The global matrices are the stages'
+nonzeros scattered (and, where blocks overlap on z_{k+1}, summed) by constant index maps, so
+IPOPT's oracles cost N small evaluations and a sparse gather.
 """
 
 from __future__ import annotations
@@ -138,12 +139,12 @@ def _compile(batches: Sequence[Sequence[ca.Function]], cache_dir: Path) -> dict[
         if not library.is_file():
             c_file = cache_dir / f"to_{digest}.c"
             c_file.write_text(source)
-            jobs.append((c_file, library, len(source)))
+            jobs.append((c_file, library))
     if jobs:
-        size = sum(n for _, _, n in jobs) / 1e6
+        size = sum(c_file.stat().st_size for c_file, _ in jobs) / 1e6
         print(f"[to] compiling {size:.1f} MB of C (cached in {cache_dir})", flush=True)
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            for error in pool.map(lambda job: _gcc(*job[:2]), jobs):
+            for error in pool.map(lambda job: _gcc(*job), jobs):
                 if error:
                     raise SolverBuildError(
                         f"compiling the TO's derivatives failed: {error[:2000]}. "
