@@ -23,14 +23,16 @@ IPOPT's oracles cost N small evaluations and a sparse gather.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import ctypes.util
 import dataclasses
 import hashlib
 import os
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -150,8 +152,11 @@ def _compile(batches: Sequence[Sequence[ca.Function]], cache_dir: Path) -> dict[
                         f"compiling the TO's derivatives failed: {error[:2000]}. "
                         "Install gcc, or set solve.compile: false to run them interpreted."
                     )
+    # CasADi builds derivatives of the NLP's own f and g (the "_val" functions) when it sets
+    # IPOPT up, though with every oracle given (and no lam_p asked for) it never evaluates
+    # them; a compiled function has none, so those get finite differences on paper.
     return {
-        fn.name(): ca.external(fn.name(), str(library))
+        fn.name(): ca.external(fn.name(), str(library), {"enable_fd": fn.name().endswith("_val")})
         for functions, library in libraries
         for fn in functions
     }
@@ -201,12 +206,8 @@ class StageNLP:
         derivs = [_derivatives(g, width) for g in self.groups]
         functions = [f for fns, _ in derivs for f in fns]
         if cache_dir is not None:
-            loaded = _compile([fns[1:] for fns, _ in derivs], cache_dir)
-            # The NLP's own f and g stay interpreted: CasADi differentiates them once when
-            # it sets IPOPT up, and a compiled function has no derivatives to offer.
-            functions = [
-                f if f.name().endswith("_val") else loaded.get(f.name(), f) for f in functions
-            ]
+            loaded = _compile([fns for fns, _ in derivs], cache_dir)
+            functions = [loaded.get(f.name(), f) for f in functions]
         per_group = [functions[4 * i : 4 * i + 4] for i in range(len(self.groups))]
         self.n_x = width * nodes
         X, P = ca.MX.sym("x", self.n_x), ca.MX.sym("p", n_params * nodes)
@@ -215,6 +216,7 @@ class StageNLP:
         Z = ca.reshape(X, width, nodes)
         Pm = ca.reshape(P, n_params, nodes)
         g_parts, cost, jac_parts, grad_parts, hess_parts = [], 0, [], [], []
+        g_jac_parts, cost_grad = [], 0
         jac_trip: list[np.ndarray] = [[], []]
         grad_idx, hess_trip = [], [[], []]
         row = 0
@@ -229,13 +231,15 @@ class StageNLP:
             g, l = val.map(n)(*args)
             g_parts.append(ca.vec(g))
             cost += ca.sum2(l)
-            _, jnz = jac_fn.map(n)(*args)
+            g_jac, jnz = jac_fn.map(n)(*args)
+            g_jac_parts.append(ca.vec(g_jac))
             jac_parts.append(ca.vec(jnz))
             jr, jc = jsp.get_triplet()
             for c, stage in enumerate(k):
                 jac_trip[0].append(row + c * group.rows + np.asarray(jr, dtype=int))
                 jac_trip[1].append(_local_to_global(stage, width, np.asarray(jc, dtype=int)))
-            _, gr = grad_fn.map(n)(*args)
+            l_grad, gr = grad_fn.map(n)(*args)
+            cost_grad += ca.sum2(l_grad)
             grad_parts.append(ca.vec(gr))
             for stage in k:
                 grad_idx.append(_local_to_global(stage, width, np.arange(group.span * width)))
@@ -270,8 +274,12 @@ class StageNLP:
         hess = ca.MX(hsp_all, ca.mtimes(hess_sum, hess_nz))
 
         self.oracles = {
-            "jac_g": ca.Function("jac_g", [X, P], [G, jac], ["x", "p"], ["g", "jac_g_x"]),
-            "grad_f": ca.Function("grad_f", [X, P], [cost, grad], ["x", "p"], ["f", "grad_f_x"]),
+            "jac_g": ca.Function(
+                "jac_g", [X, P], [ca.vertcat(*g_jac_parts), jac], ["x", "p"], ["g", "jac_g_x"]
+            ),
+            "grad_f": ca.Function(
+                "grad_f", [X, P], [cost_grad, grad], ["x", "p"], ["f", "grad_f_x"]
+            ),
             "hess_lag": ca.Function(
                 "hess_lag",
                 [X, P, lam_f, lam_g],
@@ -280,7 +288,7 @@ class StageNLP:
                 ["triu_hess_gamma_x_x"],
             ),
         }
-        options = {"print_time": False, "ipopt": ipopt, **self.oracles}
+        options = {"print_time": False, "calc_lam_p": False, "ipopt": ipopt, **self.oracles}
         self.solver = ca.nlpsol("to", "ipopt", {"x": X, "p": P, "f": cost, "g": G}, options)
         _single_threaded_blas()
         self.build_time_s = time.perf_counter() - tic
@@ -291,9 +299,10 @@ class StageNLP:
         """Solve from ``x0``; ``params`` is (n_params, N). A failed solve is returned with
         IPOPT's status, not raised."""
         tic = time.perf_counter()
-        out = self.solver(
-            x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg, p=params.ravel(order="F")
-        )
+        with _heap_kept():
+            out = self.solver(
+                x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg, p=params.ravel(order="F")
+            )
         elapsed = time.perf_counter() - tic
         stats = self.solver.stats()
         x = np.asarray(out["x"]).ravel()
@@ -325,6 +334,32 @@ def _single_threaded_blas() -> None:
     library = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
     if library.is_file():
         ctypes.CDLL(str(library)).openblas_set_num_threads(1)
+
+
+# glibc's mallopt parameters and their defaults.
+_M_TRIM_THRESHOLD, _M_MMAP_MAX = -1, -4
+_TRIM_DEFAULT, _MMAP_MAX_DEFAULT = 128 * 1024, 65536
+
+
+@contextlib.contextmanager
+def _heap_kept() -> Iterator[None]:
+    """Keep freed memory in the process while IPOPT runs. MUMPS allocates and frees its
+    work arrays at every factorisation; by default glibc maps large blocks afresh and gives
+    them back, and the kernel zeroes every page again: on ``tiny`` that was 7 s of 56 (sys
+    time and page faults). The iterates do not change. Elsewhere than glibc, a no-op."""
+    name = ctypes.util.find_library("c")
+    libc = ctypes.CDLL(name) if name else None
+    if libc is None or not hasattr(libc, "mallopt"):
+        yield
+        return
+    libc.mallopt(_M_MMAP_MAX, 0)
+    libc.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)
+    try:
+        yield
+    finally:
+        libc.mallopt(_M_MMAP_MAX, _MMAP_MAX_DEFAULT)
+        libc.mallopt(_M_TRIM_THRESHOLD, _TRIM_DEFAULT)
+        libc.malloc_trim(0)
 
 
 def _summing_matrix(target: np.ndarray, source: np.ndarray, size: int) -> ca.DM:
