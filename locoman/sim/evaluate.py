@@ -52,6 +52,12 @@ def scene_qpos(
     return qpos
 
 
+def geom_label(model: mujoco.MjModel, geom: int) -> str:
+    """The geom's name, or, for the robot's unnamed mesh geoms, its body's name and index."""
+    name = model.geom(geom).name
+    return name or f"{model.body(model.geom_bodyid[geom]).name}#{geom}"
+
+
 def penetrations(
     model: mujoco.MjModel, q: np.ndarray, object_name: str, object_q: np.ndarray
 ) -> tuple[np.ndarray, list[tuple[str, str, float]]]:
@@ -67,7 +73,7 @@ def penetrations(
             if c.dist < 0.0:
                 depth -= c.dist
                 if -c.dist > deepest[2]:
-                    deepest = (model.geom(c.geom1).name, model.geom(c.geom2).name, -c.dist)
+                    deepest = (geom_label(model, c.geom1), geom_label(model, c.geom2), -c.dist)
         totals.append(depth)
         worst.append(deepest)
     return np.array(totals), worst
