@@ -40,6 +40,7 @@ class ContactFrames:
     Attributes:
         palm: Link name -> palm centre in the hand link frame [m].
         palm_radius: Radius of the hand's collision capsule [m].
+        palm_half_length: Half length of that capsule's axis [m].
         palm_axes: Link name -> (3, 3) palm contact frame in the hand link frame: z the
             palm's outward normal, square to the capsule's axis (x), so that a palm laid on
             a face along z touches it along the whole capsule.
@@ -49,6 +50,7 @@ class ContactFrames:
 
     palm: dict[str, np.ndarray]
     palm_radius: float
+    palm_half_length: float
     palm_axes: dict[str, np.ndarray]
     sole: dict[str, np.ndarray]
     sole_half_extents: np.ndarray
@@ -58,11 +60,12 @@ class ContactFrames:
 def contact_frames() -> ContactFrames:
     """Palm and sole frames of the MuJoCo G1's collision geometry."""
     model = g1.g1_mjmodel()
-    palm, radii, axes, sole = {}, [], {}, {}
+    palm, radii, lengths, axes, sole = {}, [], [], {}, {}
     for frame, link in _HAND_LINK.items():
         geom = _collision_geoms(model, link)[0]
         palm[frame] = model.geom_pos[geom].copy()
         radii.append(float(model.geom_size[geom][0]))
+        lengths.append(float(model.geom_size[geom][1]))
         rot = np.zeros(9)
         mujoco.mju_quat2Mat(rot, model.geom_quat[geom])
         along = rot.reshape(3, 3)[:, 2] * np.sign(rot[2])  # towards the fingers (+x)
@@ -75,7 +78,7 @@ def contact_frames() -> ContactFrames:
         geom = model.geom(link.replace("_ankle_roll_link", "_foot"))
         sole[frame] = geom.pos - np.array([0.0, 0.0, geom.size[2]])
         half = geom.size[:2].copy()
-    return ContactFrames(palm, max(radii), axes, sole, half)
+    return ContactFrames(palm, max(radii), max(lengths), axes, sole, half)
 
 
 def _collision_geoms(model: mujoco.MjModel, body: str) -> list[int]:

@@ -196,6 +196,7 @@ class StageBuilder:
         self.collision, self.obstacles = collision, obstacles
         self.sole_half = np.asarray(frames.sole_half_extents)
         self.palm_radius = float(frames.palm_radius)
+        self.palm_half_length = float(frames.palm_half_length)
         self.kinematics = kinematics_function(kin, frames)
         q, v = kin.q, kin.v
         self._base_omega = ca.Function(
@@ -247,6 +248,13 @@ class StageBuilder:
         """Palm centre [m], contact frame and angular velocity [rad/s]."""
         h = HANDS[i]
         return _kin(z, f"{h}_r"), _kin(z, f"{h}_R"), _kin(z, f"{h}_w")
+
+    def _palm_spheres(self, z: ca.SX, i: int) -> list[tuple[ca.SX, float]]:
+        """(centre [m], radius [m]) of spheres covering the hand's collision capsule: its
+        centre and both ends of its axis (the contact frame's x), which reach 3 cm further."""
+        r, R, _ = self._palm(z, i)
+        ends = [r + sign * self.palm_half_length * R[:, 0] for sign in (-1.0, 1.0)]
+        return [(point, self.palm_radius) for point in (r, *ends)]
 
     def _object_frame(self, z: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         qo, vo = _var(z, "object_q"), _var(z, "object_v")
@@ -425,9 +433,10 @@ class StageBuilder:
     def collision_residuals(self, z: ca.SX, mode: NodeMode) -> ca.SX:
         """Residuals of the weighted penalties (12) at node k: of the body points, and of
         the palms not touching the object, in the object; of the object's corners while it
-        is carried, and of the palms, in the obstacles."""
+        is carried, and of the palms, in the obstacles. A palm is its capsule's centre and
+        end spheres."""
         cfg = self.collision
-        palms = [(self._palm(z, i)[0], self.palm_radius) for i in range(2)]
+        palms = [self._palm_spheres(z, i) for i in range(2)]
         residuals = []
         if cfg.object_body:
             R_o, p_o, _ = self._object_frame(z)
@@ -435,7 +444,7 @@ class StageBuilder:
             half = np.r_[self.obj.half_extents, self.obj.com[2]]
             points = _kin(z, "body_points")
             spheres = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
-            spheres += [palms[i] for i in range(2) if not mode.hands[i]]
+            spheres += [s for i in range(2) if not mode.hands[i] for s in palms[i]]
             for point, radius in spheres:
                 p = sphere_box_penetration(point, radius, centre, R_o, half, cfg)
                 residuals.append(penetration_residual(p, self.collision.softness))
@@ -448,7 +457,7 @@ class StageBuilder:
                     ca.DM(obstacle.centre),
                     obstacle.half_extents,
                 )
-                for point, radius in palms:
+                for point, radius in palms[0] + palms[1]:
                     p = sphere_box_penetration(point, radius, centre, R, box, cfg)
                     residuals.append(penetration_residual(p, self.collision.softness))
         return np.sqrt(self.w.collision) * ca.vertcat(*residuals)
