@@ -3,6 +3,7 @@ and the checks that do not trust the IK."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -166,3 +167,32 @@ def test_support_polygon_and_margin():
     soles = [np.array([0.0, 0.1, 0.0]), np.array([0.0, -0.1, 0.0])]
     polygon = support_polygon(soles, [0.0, 0.0])
     assert polygon_margin(np.zeros(2), polygon) == pytest.approx(half[0])
+
+
+def test_palm_spheres_cover_the_hand_capsule_the_evaluation_collides():
+    """The TO's palm spheres (centre, and both ends at palm_half_length along the palm
+    frame's x) lie on each hand capsule's axis and reach its ends; one length serves both
+    hands, the longer one."""
+    model = g1.g1_mjmodel()
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    data.qpos[7:] = rng.uniform(model.jnt_range[1:, 0], model.jnt_range[1:, 1])
+    mujoco.mj_forward(model, data)
+    frames = contact_frames()
+    for frame, link in (("left_palm", "left_rubber_hand"), ("right_palm", "right_rubber_hand")):
+        body = model.body(link).id
+        capsule = next(
+            i
+            for i in range(model.ngeom)
+            if model.geom_bodyid[i] == body and model.geom_type[i] == mujoco.mjtGeom.mjGEOM_CAPSULE
+        )
+        centre, axis = data.geom_xpos[capsule], data.geom_xmat[capsule].reshape(3, 3)[:, 2]
+        radius, half = model.geom_size[capsule][:2]
+        R, p = data.xmat[body].reshape(3, 3), data.xpos[body]
+        palm, along = frames.palm[frame], frames.palm_axes[frame][:, 0]
+        for s in (-1.0, 1.0):
+            end = p + R @ (palm + s * frames.palm_half_length * along) - centre
+            along_axis = end @ axis
+            assert np.linalg.norm(end - along_axis * axis) < 1e-9
+            assert half - 1e-12 <= abs(along_axis) <= half + 0.005
+        assert radius - 1e-12 <= frames.palm_radius <= radius + 0.005

@@ -40,7 +40,8 @@ class ContactFrames:
     Attributes:
         palm: Link name -> palm centre in the hand link frame [m].
         palm_radius: Radius of the hand's collision capsule [m].
-        palm_half_length: Half length of that capsule's axis [m].
+        palm_half_length: Half length of that capsule's axis [m]; like the radius, the
+            larger of the two hands' (they differ by 4 mm), so their spheres cover both.
         palm_axes: Link name -> (3, 3) palm contact frame in the hand link frame: z the
             palm's outward normal, square to the capsule's axis (x), so that a palm laid on
             a face along z touches it along the whole capsule.
