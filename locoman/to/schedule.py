@@ -45,16 +45,16 @@ class ScheduleCfg:
         set_nodes: The object on its target, hands still on it.
     """
 
-    double_support_nodes: int = 3
-    swing_nodes: int = 8
+    double_support_nodes: int = 2
+    swing_nodes: int = 6
     step_length_m: float = 0.25
     step_yaw_rad: float = 0.45
     step_min_m: float = 0.15
-    reach_nodes: int = 8
-    grasp_nodes: int = 4
-    lift_nodes: int = 6
-    lower_nodes: int = 6
-    set_nodes: int = 4
+    reach_nodes: int = 6
+    grasp_nodes: int = 3
+    lift_nodes: int = 4
+    lower_nodes: int = 4
+    set_nodes: int = 3
 
     def check(self) -> list[tuple[str, str]]:
         counts = dataclasses.asdict(self)
