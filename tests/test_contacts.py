@@ -14,12 +14,14 @@ from locoman.contact.kabsch import apply, decompose_similarity, similarity_matri
 from locoman.contact.lift import fit_anchor, support_up
 from locoman.contact.registration import (
     Surface,
+    View,
     _fit_yaw,
     draw_hypotheses,
     icp,
     level,
     overlap_scores,
     refine_axes,
+    seen_target,
     select,
     tilt_errors,
     turn_about_object,
@@ -32,6 +34,7 @@ from locoman.contact.surface import (
     signed_distance,
 )
 from locoman.errors import ModelError, SceneError
+from locoman.perception import camera
 from locoman.scene.objects import OBJECT_KINDS, Primitive, object_geometry
 
 SIZES = {
@@ -155,6 +158,39 @@ def test_upright_icp_keeps_the_start_tilt():
     scale = np.cbrt(np.linalg.det(refined[:3, :3]))
     np.testing.assert_allclose(refined[2, :3] / scale, truth[2, :3], atol=1e-9)
     np.testing.assert_allclose(apply(refined, source), apply(truth, source), atol=0.01)
+
+
+def test_icp_excuses_the_surface_a_nearer_thing_hides():
+    rng = np.random.default_rng(0)
+    surface, pose = _box_surface(rng)
+    centre = pose[:3, 3] + [0.0, 0.0, 0.1]
+    truth = camera.look_at(centre + np.array([1.0, -0.7, 0.6]), centre)
+    K = camera.intrinsics_from_fovy(512, 512, np.radians(45.0))
+    facing = seen_target(surface.points, surface.normals, truth[None], None)[0]
+    local = apply(np.linalg.inv(pose), surface.points)
+    hidden = facing & (local[:, 1] > 0.0)
+    # An arm 0.3 m in front of the camera covers the half of the box with y > 0.
+    in_cam = camera.to_camera(surface.points, truth)
+    depth = np.zeros((512, 512))
+    for u, v in np.floor(camera.project(in_cam[hidden], K)).astype(int):
+        depth[max(v - 3, 0) : v + 4, max(u - 3, 0) : u + 4] = 0.3
+    view = View(depth, K, np.ones(3), np.zeros(3), 0.05)
+    seen = seen_target(surface.points, surface.normals, truth[None], view)[0]
+    assert np.mean(seen == (facing & ~hidden)) > 0.97
+    visible = in_cam[facing & ~hidden][::2]
+    source = visible + rng.normal(0.0, 0.002, visible.shape)
+    turn = np.eye(4)
+    turn[:3, :3] = Rotation.from_euler("z", 0.14).as_matrix()
+    start = turn @ truth
+    start[:3, 3] += [0.04, -0.03, 0.0]
+    for v, max_angle in ((view, 1.0), (None, None)):
+        refined = icp(source, surface, start[None], 0.1, 40, True, (0.5, 2.0), view=v)[0]
+        s, rot, _ = decompose_similarity(refined)
+        angle = np.degrees(Rotation.from_matrix(rot @ truth[:3, :3].T).magnitude())
+        if max_angle is not None:
+            assert angle < max_angle and s == pytest.approx(1.0, abs=0.01)
+        else:  # asked for points on the hidden half too, ICP stretches the cloud over it
+            assert angle > 5.0 and s > 1.1
 
 
 def test_axis_refinement_recovers_a_stretched_variant():

@@ -79,6 +79,9 @@ class RegistrationCfg:
         icp_distance: ICP pairs longer than this fraction of the object's size are dropped.
         overlap_distance: A point overlaps the other cloud within this fraction of the
             object's size [-].
+        occlusion_margin_m: A camera-facing surface point counts as hidden, and is not
+            asked to have a source point, where D_g at its pixel in R_g is nearer by more
+            than this (the person's arm in front of the box) [m]; null: none is hidden.
         stretch_iterations: ICP iterations with a scale per object axis after the winner is
             chosen (0: keep the similarity) [-].
         max_stretch: Each axis' factor stays within 1 +- this [-].
@@ -99,6 +102,7 @@ class RegistrationCfg:
     icp_iterations: int = 30
     icp_distance: float = 0.15
     overlap_distance: float = 0.03
+    occlusion_margin_m: float | None = 0.05
     stretch_iterations: int = 20
     max_stretch: float = 0.15
     stretch_prior_m: float = 0.02
@@ -116,6 +120,8 @@ class RegistrationCfg:
             errors.append(("icp_distance", "distances are fractions of the object size > 0"))
         if self.stretch_iterations < 0 or not 0.0 <= self.max_stretch < 1.0:
             errors.append(("max_stretch", "needs stretch_iterations >= 0, max_stretch in [0, 1)"))
+        if self.occlusion_margin_m is not None and self.occlusion_margin_m <= 0.0:
+            errors.append(("occlusion_margin_m", "must be > 0, or null for no occlusion test"))
         if self.stretch_prior_m < 0.0:
             errors.append(("stretch_prior_m", "must be >= 0"))
         if self.model_points < 100 or self.icp_points < 10:

@@ -26,7 +26,7 @@ from locoman.config.contacts import ContactsCfg
 from locoman.contact import semantic
 from locoman.contact.kabsch import apply, decompose_similarity
 from locoman.contact.lift import SOLE_KEYPOINTS, Anchor, fit_anchor, support_up
-from locoman.contact.registration import Person, Registration, Surface, register
+from locoman.contact.registration import Person, Registration, Surface, View, register
 from locoman.contact.surface import project_to_support, project_to_surface, sample_surface
 from locoman.errors import SceneError
 from locoman.perception import camera
@@ -261,6 +261,7 @@ def transfer_subtask(
         dst,
         valid.reshape(s, n),
         person,
+        _view(inputs, anchor, cfg.registration.occlusion_margin_m),
         cfg.registration,
         rng,
         inputs.where,
@@ -279,6 +280,13 @@ def transfer_subtask(
     return Transfer(
         points, normals, surfaces, raw, naive, reg, T_world_pelvis, pool, lifted, anchor
     )
+
+
+def _view(inputs: SubtaskInputs, anchor: Anchor, margin_m: float | None) -> View | None:
+    """R_g's depth as the registration needs it to tell what the person hides."""
+    if margin_m is None:
+        return None
+    return View(inputs.depth, inputs.K, anchor.scale, anchor.offset, margin_m)
 
 
 def _naive_normals(points: np.ndarray, inputs: SubtaskInputs) -> np.ndarray:
