@@ -11,6 +11,7 @@ from locoman.to.costs import (
     ARM_NOMINAL,
     ARMS,
     CostWeights,
+    averaged_over_nodes,
     keyframe_base_cost,
     keyframe_foot_cost,
     regularization_cost,
@@ -53,3 +54,18 @@ def test_regularization_penalises_the_timestep_and_base_height():
     q = ca.DM(q)
     cost = regularization_cost(W, q, ca.DM.zeros(35), ca.DM.zeros(12), ca.DM.zeros(3), 0.03)
     assert _value(cost) == pytest.approx(100 * 0.01 + 100 * 0.01**2)
+
+
+def test_averaging_over_nodes_divides_stage_weights_but_not_keyframes_or_references():
+    averaged = averaged_over_nodes(W, 50)
+    assert averaged.com_over_feet == pytest.approx(W.com_over_feet / 50)
+    assert averaged.slack == pytest.approx(W.slack / 50)
+    assert averaged.collision == pytest.approx(W.collision / 50)
+    assert averaged.keyframe_base == W.keyframe_base
+    assert averaged.keyframe_foot == W.keyframe_foot
+    assert averaged.object_goal == W.object_goal
+    assert (averaged.clearance_m, averaged.base_height_m, averaged.timestep_s) == (
+        W.clearance_m,
+        W.base_height_m,
+        W.timestep_s,
+    )

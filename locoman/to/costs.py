@@ -65,6 +65,9 @@ class CostWeights:
             the paper, which states the target without its cost [-].
         object_upright: Object roll and pitch while it moves (ours) [-].
         collision: Penalties (12) of :mod:`locoman.to.collision` [-].
+        average_over_nodes: (14a): the stage and collision weights are divided by the
+            number of nodes N (:func:`averaged_over_nodes`); off, they are summed at the
+            weights given, as Table I lists them.
     """
 
     com_over_feet: float = 5e2
@@ -91,6 +94,7 @@ class CostWeights:
     object_goal: float = 1e4
     object_upright: float = 1e2
     collision: float = 1e3
+    average_over_nodes: bool = False
 
     def check(self) -> list[tuple[str, str]]:
         values = [v for v in dataclasses.asdict(self).values() if isinstance(v, float)]
@@ -102,6 +106,24 @@ class CostWeights:
         if self.timestep_s <= 0.0:
             errors.append(("timestep_s", "must be > 0 s"))
         return errors
+
+
+# (14a) sums these once over the keyframes and the last node, not averaged over the nodes;
+# the others in this tuple are references, not weights.
+NOT_AVERAGED = ("keyframe_base", "keyframe_foot", "object_goal", "average_over_nodes")
+REFERENCES = ("clearance_m", "base_height_m", "timestep_s")
+
+
+def averaged_over_nodes(weights: CostWeights, nodes: int) -> CostWeights:
+    """The weights of (14a): every stage and collision weight divided by N ``nodes``."""
+    return dataclasses.replace(
+        weights,
+        **{
+            f.name: getattr(weights, f.name) / nodes
+            for f in dataclasses.fields(weights)
+            if f.name not in NOT_AVERAGED + REFERENCES
+        },
+    )
 
 
 def _hip(side: str, axis: str) -> int:

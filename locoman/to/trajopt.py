@@ -16,7 +16,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.rotations import matrix_to_rpy, rpy_to_matrix
 from locoman.to.collision import CollisionCfg, Obstacle
-from locoman.to.costs import CostWeights
+from locoman.to.costs import CostWeights, averaged_over_nodes
 from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
 from locoman.to.nlp import NLPResult, StageNLP
@@ -383,8 +383,10 @@ class TrajectoryOptimizer:
         solver: SolverCfg,
         cache_dir: Path,
     ) -> None:
-        self.inputs, self.cfg, self.weights = inputs, solver, weights
         self.schedule = build_schedule(inputs, schedule_cfg)
+        if weights.average_over_nodes:
+            weights = averaged_over_nodes(weights, self.schedule.nodes)
+        self.inputs, self.cfg, self.weights = inputs, solver, weights
         self.modes = node_modes(self.schedule)
         model = g1.g1_pinocchio_model()
         self.kin = SymbolicKinematics(model)
