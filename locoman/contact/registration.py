@@ -370,12 +370,12 @@ def overlap_scores(
     the target and the fraction of the target points the camera sees (:func:`seen_target`)
     within it of the source."""
     target_tree = cKDTree(surface.points)
-    facing = seen_target(surface.points, surface.normals, transforms, view)
+    seen_by = seen_target(surface.points, surface.normals, transforms, view)
     scores = np.zeros(len(transforms))
     for k, matrix in enumerate(transforms):
         moved = apply(matrix, source)
         near_target = target_tree.query(moved, distance_upper_bound=distance)[0] <= distance
-        seen = surface.points[facing[k]]
+        seen = surface.points[seen_by[k]]
         if len(seen) == 0:
             continue
         near_source = cKDTree(moved).query(seen, distance_upper_bound=distance)[0] <= distance

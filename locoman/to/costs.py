@@ -108,10 +108,10 @@ class CostWeights:
         return errors
 
 
-# (14a) sums these once over the keyframes and the last node, not averaged over the nodes;
-# the others in this tuple are references, not weights.
-NOT_AVERAGED = ("keyframe_base", "keyframe_foot", "object_goal", "average_over_nodes")
-REFERENCES = ("clearance_m", "base_height_m", "timestep_s")
+# (14a) averages the stage and collision costs over the nodes; the keyframe costs and the
+# object goal are summed once. The rest of these fields are not weights.
+SUMMED = ("keyframe_base", "keyframe_foot", "object_goal")
+NOT_WEIGHTS = ("clearance_m", "base_height_m", "timestep_s", "average_over_nodes")
 
 
 def averaged_over_nodes(weights: CostWeights, nodes: int) -> CostWeights:
@@ -121,7 +121,7 @@ def averaged_over_nodes(weights: CostWeights, nodes: int) -> CostWeights:
         **{
             f.name: getattr(weights, f.name) / nodes
             for f in dataclasses.fields(weights)
-            if f.name not in NOT_AVERAGED + REFERENCES
+            if f.name not in SUMMED + NOT_WEIGHTS
         },
     )
 
