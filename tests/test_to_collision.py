@@ -17,6 +17,7 @@ from locoman.to.collision import (
     Obstacle,
     box_clearance,
     box_corners,
+    edge_point_count,
     link_spheres,
     obstacles_from_objects,
     penetration_residual,
@@ -99,7 +100,7 @@ def test_the_penalty_is_the_papers_away_from_contact():
 
 
 def test_box_corners_span_the_box_from_its_bottom_face():
-    corners = box_corners(HALF)
+    corners = np.array([np.asarray(c).ravel() for c in box_corners(HALF)])
     assert corners.shape == (8, 3)
     assert np.allclose(corners.min(axis=0), [-0.3, -0.2, 0.0])
     assert np.allclose(corners.max(axis=0), [0.3, 0.2, 0.1])
@@ -199,7 +200,8 @@ def test_palm_frames_are_square_to_the_hand_capsule():
 
 def test_vertical_edge_points_run_down_every_edge_at_most_the_spacing_apart():
     table = Obstacle("t", np.array([1.0, 0.0, 0.36]), 0.3, np.array([0.3, 0.4, 0.36]))
-    points = vertical_edge_points(table, 0.1)
+    count = edge_point_count(table.half_extents[2], 0.1)
+    points = np.array([np.asarray(p).ravel() for p in vertical_edge_points(table, count)])
     local = (points - table.centre) @ table.rotation
     assert np.allclose(np.abs(local[:, :2]), table.half_extents[:2])
     for x in (-0.3, 0.3):

@@ -11,22 +11,26 @@ import pytest
 
 from locoman.to.nlp import SolverBuildError, StageGroup, StageNLP
 
-WIDTH, NODES, PARAMS = 3, 6, 2
+WIDTH, NODES, PARAMS, THETA = 3, 6, 2, 2
 
 
 def _groups() -> list[StageGroup]:
     z, z1 = ca.SX.sym("z", WIDTH), ca.SX.sym("z1", WIDTH)
     p, p1 = ca.SX.sym("p", PARAMS), ca.SX.sym("p1", PARAMS)
-    g_a = ca.vertcat(z1[0] - z[0] - ca.sin(z[1]) * p[0], z1[2] * z[2] - p[1], z[0] ** 2 + z1[1])
+    theta = ca.SX.sym("theta", THETA)
+    g_a = ca.vertcat(
+        z1[0] - z[0] - ca.sin(z[1]) * p[0], z1[2] * z[2] - p[1] * theta[0], z[0] ** 2 + z1[1]
+    )
     l_a = ca.sumsqr(z - p[0]) + z[0] * z1[2] ** 2
     g_b = ca.vertcat(z1[0] - z[0] * z[2], ca.cos(z1[1]) + z[1])
-    l_b = ca.sumsqr(z1) * p1[1] + ca.exp(0.1 * z[2])
+    l_b = ca.sumsqr(z1) * p1[1] + ca.exp(theta[1] * z[2])
     r_a = ca.vertcat(ca.fmin(z[1] * z1[2] - p[1], 0.0), ca.sin(z[0]) * p1[0])
-    fa = ca.Function("stage_a", [z, z1, p, p1], [g_a, l_a, r_a])
-    fb = ca.Function("stage_b", [z, z1, p, p1], [g_b, l_b, ca.SX(0, 1)])
+    fa = ca.Function("stage_a", [z, z1, p, p1, theta], [g_a, l_a, r_a])
+    fb = ca.Function("stage_b", [z, z1, p, p1, theta], [g_b, l_b, ca.SX(0, 1)])
     g_n = ca.vertcat(z[0] * ca.sin(z[2]) - p[0], z[1] ** 3)
     r_n = ca.cos(z[2]) * z[1]
-    fn = ca.Function("node", [z, p], [g_n, ca.exp(z[0] * p[1]) + z[1] * z[2], r_n])
+    l_n = ca.exp(z[0] * p[1]) + z[1] * z[2] * theta[0]
+    fn = ca.Function("node", [z, p, theta], [g_n, l_n, r_n])
     return [
         StageGroup(fa, np.array([0, 2, 3]), np.zeros(3), np.array([0.0, 0.0, np.inf])),
         StageGroup(fb, np.array([1, 4]), np.zeros(2), np.zeros(2)),
@@ -36,13 +40,14 @@ def _groups() -> list[StageGroup]:
 
 def _reference(groups: list[StageGroup]):
     """The same NLP written out stage by stage: constraints, smooth cost, residuals."""
-    x, p = ca.SX.sym("x", WIDTH * NODES), ca.SX.sym("p", PARAMS * NODES)
-    Z, P = ca.reshape(x, WIDTH, NODES), ca.reshape(p, PARAMS, NODES)
+    x, p = ca.SX.sym("x", WIDTH * NODES), ca.SX.sym("p", PARAMS * NODES + THETA)
+    Z, P = ca.reshape(x, WIDTH, NODES), ca.reshape(p[: PARAMS * NODES], PARAMS, NODES)
+    theta = p[PARAMS * NODES :]
     g, f, r = [], 0, []
     for group in groups:
         for k in group.stages:
             cols = range(k, k + group.span)
-            gk, lk, rk = group.function(*[Z[:, c] for c in cols], *[P[:, c] for c in cols])
+            gk, lk, rk = group.function(*[Z[:, c] for c in cols], *[P[:, c] for c in cols], theta)
             g.append(gk)
             f += lk
             r.append(rk)
@@ -55,7 +60,7 @@ def test_assembled_derivatives_match_casadi(compiled: bool, tmp_path) -> None:
         pytest.skip("no C compiler")
     groups = _groups()
     cache = tmp_path if compiled else None
-    nlp = StageNLP(WIDTH, NODES, PARAMS, groups, {"print_level": 0, "sb": "yes"}, cache)
+    nlp = StageNLP(WIDTH, NODES, PARAMS, THETA, groups, {"print_level": 0, "sb": "yes"}, cache)
     x, p, g, f_smooth, r = _reference(groups)
     f = f_smooth + ca.sumsqr(r)
     lam_f, lam_g = ca.SX.sym("lf"), ca.SX.sym("lg", g.numel())
@@ -92,4 +97,4 @@ def test_assembled_derivatives_match_casadi(compiled: bool, tmp_path) -> None:
 def test_uncovered_stage_is_refused() -> None:
     groups = _groups()[:1] + _groups()[2:]
     with pytest.raises(SolverBuildError, match="every stage"):
-        StageNLP(WIDTH, NODES, PARAMS, groups, {"print_level": 0})
+        StageNLP(WIDTH, NODES, PARAMS, THETA, groups, {"print_level": 0})

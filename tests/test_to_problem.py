@@ -49,7 +49,7 @@ def test_the_first_touch_stage_has_independent_equalities():
     p[PARAMETERS["hand_points"]] = [0.0, 0.15, 0.1, 0.0, -0.15, 0.1]
     faces = [rotation_x(-np.pi / 2), rotation_x(np.pi / 2)]  # z: the side faces' normals
     p[PARAMETERS["hand_frames"]] = np.concatenate([f.ravel(order="F") for f in faces])
-    g = fn(zs, z1s, p, p)[0][:rows]
+    g = fn(zs, z1s, p, p, builder.parameters.vector())[0][:rows]
     jac = ca.Function("j", [zs, z1s], [ca.jacobian(g, ca.vertcat(zs, z1s))])
     J = np.asarray(ca.densify(jac(z, z)))
     fixed = np.concatenate([np.arange(WIDTH)[VARIABLES[name]] for name in FIXED_WHILE_AT_REST])

@@ -28,6 +28,7 @@ import numpy as np
 
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
+from locoman.to.kinematics import rot_z
 
 # The links whose spheres the default self-collision pairs use; the pairs measured most in
 # MuJoCo replays of tiny: the arms against the torso and the hips, the knees against each
@@ -115,6 +116,17 @@ class Obstacle:
     def rotation(self) -> np.ndarray:
         return rpy_to_matrix(np.array([0.0, 0.0, self.yaw]))
 
+    def frame(self) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """Centre (3,) [m], rotation (3, 3) and half sizes (3,) [m] as CasADi values,
+        whether the fields are numbers or the symbols of
+        :class:`locoman.to.parameters.SymbolicGlobals`."""
+        return column(self.centre), rot_z(self.yaw), column(self.half_extents)
+
+
+def column(x) -> ca.SX | ca.DM:
+    """A CasADi column of numbers (DM) or of an expression (unchanged)."""
+    return x if isinstance(x, ca.SX | ca.MX) else ca.DM(np.asarray(x, dtype=float).ravel())
+
 
 def obstacles_from_objects(objects: dict[str, dict]) -> tuple[Obstacle, ...]:
     """One box per fixed object of the scene (``objects.json``): the bounding box of its
@@ -143,18 +155,18 @@ def obstacles_from_objects(objects: dict[str, dict]) -> tuple[Obstacle, ...]:
 
 
 def box_clearance(
-    point: ca.SX, centre: ca.SX, R: ca.SX, half_extents: np.ndarray, smoothing: float
+    point: ca.SX, centre: ca.SX, R: ca.SX, half_extents: ca.SX, smoothing: ca.SX
 ) -> ca.SX:
     """Smooth signed clearance [m] of ``point`` from a box (centre, axes R, half extents):
     tau ln sum_i exp((|x_i| - a_i) / tau), x = R^T (point - centre), |.| smoothed over 1 mm.
     Negative inside; on the faces the signed distance, up to tau ln 3."""
     local = R.T @ (point - centre)
-    excess = ca.sqrt(local**2 + 1e-6) - ca.DM(half_extents)
+    excess = ca.sqrt(local**2 + 1e-6) - column(half_extents)
     return smoothing * ca.logsumexp(excess / smoothing)
 
 
 def sphere_box_penetration(
-    centre_sphere: ca.SX, radius: float, box_centre: ca.SX, R: ca.SX, half: np.ndarray, cfg
+    centre_sphere: ca.SX, radius: float, box_centre: ca.SX, R: ca.SX, half: ca.SX, cfg
 ) -> ca.SX:
     """(11) for a sphere (radius 0: a point) and a box: p = (c - r - margin) / L, c the
     clearance of its centre."""
@@ -180,23 +192,35 @@ def penetration_residual(p: ca.SX, softness: float) -> ca.SX:
     return ca.fmin(p, 0.0) - softness * ca.log1p(ca.exp(-ca.fabs(p) / softness))
 
 
-def box_corners(half_extents: np.ndarray) -> np.ndarray:
-    """(8, 3) corners of a box in its frame, which sits at the bottom face's centre [m]."""
-    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    corners = signs * np.asarray(half_extents)
-    corners[:, 2] += half_extents[2]
-    return corners
+_CORNER_SIGNS = [(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]
 
 
-def vertical_edge_points(obstacle: Obstacle, spacing: float) -> np.ndarray:
-    """(n, 3) world points along the four vertical edges of an obstacle, from its top
-    corners down, at most ``spacing`` [m] apart: an edge that enters a carried box's side
-    between the box's corners is caught by one of them."""
-    a, b, c = obstacle.half_extents
-    count = int(np.ceil(2.0 * c / spacing)) + 1
-    heights = np.linspace(c, -c, count)
-    local = np.array([[x, y, h] for x in (-a, a) for y in (-b, b) for h in heights])
-    return local @ obstacle.rotation.T + obstacle.centre
+def box_corners(half_extents) -> list[ca.SX | ca.DM]:
+    """The 8 corners (3,) of a box of ``half_extents`` (3,) [m] in its frame, which sits at
+    the bottom face's centre; numbers or CasADi expressions."""
+    half = column(half_extents)
+    lift = ca.vertcat(0.0, 0.0, half[2])
+    return [ca.DM(signs) * half + lift for signs in _CORNER_SIGNS]
+
+
+def edge_point_count(half_height: float, spacing: float) -> int:
+    """Points per vertical edge of :func:`vertical_edge_points`, at most ``spacing`` apart
+    [m]; a count is structure, so it comes from the numbers."""
+    return int(np.ceil(2.0 * half_height / spacing)) + 1
+
+
+def vertical_edge_points(obstacle: Obstacle, count: int) -> list[ca.SX | ca.DM]:
+    """World points (3,) along the four vertical edges of an obstacle, ``count`` per edge
+    from its top corners down (:func:`edge_point_count`): an edge that enters a carried
+    box's side between the box's corners is caught by one of them."""
+    centre, R, half = obstacle.frame()
+    out = []
+    for x in (-1.0, 1.0):
+        for y in (-1.0, 1.0):
+            for i in range(count):
+                height = half[2] * (1.0 - 2.0 * i / (count - 1))
+                out.append(centre + R @ ca.vertcat(x * half[0], y * half[1], height))
+    return out
 
 
 @dataclasses.dataclass(frozen=True)

@@ -74,8 +74,8 @@ def friction_cone_cop(
         f[2] * size_x + tau[1],
         f[2] * size_y - tau[0],
         f[2] * size_y + tau[0],
-        mu * f[2] * max(size_x, size_y) - tau[2],
-        mu * f[2] * max(size_x, size_y) + tau[2],
+        mu * f[2] * ca.fmax(size_x, size_y) - tau[2],
+        mu * f[2] * ca.fmax(size_x, size_y) + tau[2],
     )
 
 

@@ -4,9 +4,12 @@ exact Hessian, one small SX function mapped over the nodes and given to IPOPT vi
 ``hess_lag``, was the fastest").
 
 The decision vector is x = (z_0, ..., z_{N-1}), one block of ``width`` variables per node;
-the parameters are one column of ``n_params`` per node. A stage k couples z_k and z_{k+1}:
-``F(z_k, z_{k+1}, p_k, p_{k+1}) -> (g_k, l_k, r_k)``; a node function touches one node
-only: ``F(z_k, p_k) -> (g_k, l_k, r_k)``. Stages or nodes with the same constraint kinds
+the parameters are one column of ``n_params`` per node and one vector theta shared by every
+node (:mod:`locoman.to.parameters`). A stage k couples z_k and z_{k+1}:
+``F(z_k, z_{k+1}, p_k, p_{k+1}, theta) -> (g_k, l_k, r_k)``; a node function touches one
+node only: ``F(z_k, p_k, theta) -> (g_k, l_k, r_k)``. Numbers that are inputs are not
+constants in the generated C, so its hash, which keys the compiled cache, changes only with
+the problem's structure. Stages or nodes with the same constraint kinds
 share one function (a :class:`StageGroup`) mapped over them. Expensive node-local terms
 (the robot's kinematics) belong in a node function: its derivatives are half the size, and
 one function serves every node whatever the contact mode.
@@ -27,24 +30,16 @@ import contextlib
 import ctypes
 import ctypes.util
 import dataclasses
-import hashlib
-import os
-import subprocess
 import sys
 import time
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import scipy.sparse as sps
 
-from locoman.errors import SolverError
-
-
-class SolverBuildError(SolverError):
-    """The NLP could not be built or compiled."""
+from locoman.to.compile import SolverBuildError, compile_units
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,8 +47,9 @@ class StageGroup:
     """Stages (or nodes) sharing one function.
 
     Attributes:
-        function: ``(z, z_next, p, p_next) -> (g, l, r)`` for a stage, ``(z, p) -> (g, l, r)``
-            for a node function, the cost being l + ||r||^2; SX.
+        function: ``(z, z_next, p, p_next, theta) -> (g, l, r)`` for a stage,
+            ``(z, p, theta) -> (g, l, r)`` for a node function, the cost being
+            l + ||r||^2; SX.
         stages: Stage indices k (a stage couples nodes k and k + 1), or node indices.
         lower: (rows,) lower bounds of g.
         upper: (rows,) upper bounds of g.
@@ -71,7 +67,7 @@ class StageGroup:
     @property
     def span(self) -> int:
         """Nodes one call touches: 2 for a stage, 1 for a node function."""
-        return self.function.n_in() // 2
+        return (self.function.n_in() - 1) // 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,11 +91,12 @@ def _derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     fn, span = group.function, group.span
     zs = [ca.SX.sym(f"z{i}", width) for i in range(span)]
     ps = [ca.SX.sym(f"p{i}", fn.size1_in(span)) for i in range(span)]
+    theta = ca.SX.sym("theta", fn.size1_in(2 * span))
     lam, sigma = ca.SX.sym("lam", group.rows), ca.SX.sym("sigma")
-    g, smooth, residuals = fn(*zs, *ps)
+    g, smooth, residuals = fn(*zs, *ps, theta)
     cost = smooth + ca.sumsqr(residuals)
     zz = ca.vertcat(*zs)
-    args = [*zs, *ps]
+    args = [*zs, *ps, theta]
     jac = ca.jacobian(g, zz)
     grad = ca.densify(ca.gradient(cost, zz))
     jac_r = ca.jacobian(residuals, zz)
@@ -120,61 +117,6 @@ def _local_to_global(stage: int, width: int, local: np.ndarray) -> np.ndarray:
     return stage * width + local
 
 
-def _c_source(functions: Sequence[ca.Function]) -> str:
-    gen = ca.CodeGenerator("locoman_to.c", {"with_header": False})
-    for fn in functions:
-        gen.add(fn)
-    return gen.dump()
-
-
-def _compile(batches: Sequence[Sequence[ca.Function]], cache_dir: Path) -> dict[str, ca.Function]:
-    """Each batch of ``functions`` compiled (``-O1``) into a shared library cached by the
-    hash of its C source, so a second build with the same formulation loads it at once;
-    the missing libraries compile in parallel, one per core."""
-    cache_dir.mkdir(parents=True, exist_ok=True)
-    jobs, libraries = [], []
-    for functions in batches:
-        source = _c_source(functions)
-        digest = hashlib.sha256(source.encode()).hexdigest()[:16]
-        library = cache_dir / f"to_{digest}.so"
-        libraries.append((functions, library))
-        if not library.is_file():
-            c_file = cache_dir / f"to_{digest}.c"
-            c_file.write_text(source)
-            jobs.append((c_file, library))
-    if jobs:
-        size = sum(c_file.stat().st_size for c_file, _ in jobs) / 1e6
-        print(f"[to] compiling {size:.1f} MB of C (cached in {cache_dir})", flush=True)
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            for error in pool.map(lambda job: _gcc(*job), jobs):
-                if error:
-                    raise SolverBuildError(
-                        f"compiling the TO's derivatives failed: {error[:2000]}. "
-                        "Install gcc, or set solve.compile: false to run them interpreted."
-                    )
-    # CasADi builds derivatives of the NLP's own f and g (the "_val" functions) when it sets
-    # IPOPT up, though with every oracle given (and no lam_p asked for) it never evaluates
-    # them; a compiled function has none, so those get finite differences on paper.
-    return {
-        fn.name(): ca.external(fn.name(), str(library), {"enable_fd": fn.name().endswith("_val")})
-        for functions, library in libraries
-        for fn in functions
-    }
-
-
-def _gcc(c_file: Path, library: Path) -> str:
-    """Compile ``c_file`` into ``library`` (atomically); the error text, or ''."""
-    partial = library.with_suffix(".so.part")
-    cmd = ["gcc", "-O1", "-shared", "-fPIC", str(c_file), "-o", str(partial), "-lm"]
-    try:
-        subprocess.run(cmd, check=True, capture_output=True, text=True)
-    except (OSError, subprocess.CalledProcessError) as exc:
-        return f"{' '.join(cmd)}: {getattr(exc, 'stderr', '') or exc}"
-    partial.rename(library)
-    c_file.unlink()
-    return ""
-
-
 class StageNLP:
     """The NLP of :mod:`locoman.to` with its IPOPT solver, built once.
 
@@ -182,10 +124,12 @@ class StageNLP:
         width: Variables per node.
         nodes: N.
         n_params: Parameters per node.
+        n_theta: Global parameters (theta, shared by every node).
         groups: Every stage 0 .. N - 2 in exactly one stage group, and any node groups.
         ipopt: IPOPT options.
         cache_dir: Where the groups' compiled derivatives are cached, one library per
             group; None runs them interpreted.
+        compile_flags: The C compiler's flags.
     """
 
     def __init__(
@@ -193,28 +137,31 @@ class StageNLP:
         width: int,
         nodes: int,
         n_params: int,
+        n_theta: int,
         groups: Sequence[StageGroup],
         ipopt: dict,
         cache_dir: Path | None = None,
+        compile_flags: Sequence[str] = ("-O1",),
     ) -> None:
         tic = time.perf_counter()
         covered = np.sort(np.concatenate([g.stages for g in groups if g.span == 2]))
         if not np.array_equal(covered, np.arange(nodes - 1)):
             raise SolverBuildError("every stage 0 .. N-2 must be in exactly one group")
-        self.width, self.nodes, self.n_params = width, nodes, n_params
+        self.width, self.nodes, self.n_params, self.n_theta = width, nodes, n_params, n_theta
         self.groups = list(groups)
         derivs = [_derivatives(g, width) for g in self.groups]
         functions = [f for fns, _ in derivs for f in fns]
         if cache_dir is not None:
-            loaded = _compile([fns for fns, _ in derivs], cache_dir)
+            loaded = compile_units([fns for fns, _ in derivs], cache_dir, compile_flags)
             functions = [loaded.get(f.name(), f) for f in functions]
         per_group = [functions[4 * i : 4 * i + 4] for i in range(len(self.groups))]
         self.n_x = width * nodes
-        X, P = ca.MX.sym("x", self.n_x), ca.MX.sym("p", n_params * nodes)
+        X, P = ca.MX.sym("x", self.n_x), ca.MX.sym("p", n_params * nodes + n_theta)
         self.n_g = sum(len(g.stages) * g.rows for g in self.groups)
         lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.n_g)
         Z = ca.reshape(X, width, nodes)
-        Pm = ca.reshape(P, n_params, nodes)
+        Pm = ca.reshape(P[: n_params * nodes], n_params, nodes)
+        theta = P[n_params * nodes :]
         g_parts, cost, jac_parts, grad_parts, hess_parts = [], 0, [], [], []
         g_jac_parts, cost_grad = [], 0
         jac_trip: list[np.ndarray] = [[], []]
@@ -227,7 +174,8 @@ class StageNLP:
             k = np.asarray(group.stages, dtype=int)
             n = len(k)
             cols = [list(k + i) for i in range(group.span)]
-            args = [Z[:, c] for c in cols] + [Pm[:, c] for c in cols]
+            # theta has one column: map() hands the same to every call.
+            args = [Z[:, c] for c in cols] + [Pm[:, c] for c in cols] + [theta]
             g, l = val.map(n)(*args)
             g_parts.append(ca.vec(g))
             cost += ca.sum2(l)
@@ -294,15 +242,23 @@ class StageNLP:
         self.build_time_s = time.perf_counter() - tic
 
     def solve(
-        self, x0: np.ndarray, lbx: np.ndarray, ubx: np.ndarray, params: np.ndarray
+        self,
+        x0: np.ndarray,
+        lbx: np.ndarray,
+        ubx: np.ndarray,
+        params: np.ndarray,
+        theta: np.ndarray,
     ) -> NLPResult:
-        """Solve from ``x0``; ``params`` is (n_params, N). A failed solve is returned with
-        IPOPT's status, not raised."""
+        """Solve from ``x0``; ``params`` is (n_params, N), ``theta`` (n_theta,). A failed
+        solve is returned with IPOPT's status, not raised."""
+        if theta.shape != (self.n_theta,):
+            raise SolverBuildError(
+                f"theta has shape {theta.shape}; this NLP was built for ({self.n_theta},)"
+            )
+        p = np.r_[params.ravel(order="F"), theta]
         tic = time.perf_counter()
         with _heap_kept():
-            out = self.solver(
-                x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg, p=params.ravel(order="F")
-            )
+            out = self.solver(x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg, p=p)
         elapsed = time.perf_counter() - tic
         stats = self.solver.stats()
         x = np.asarray(out["x"]).ravel()

@@ -20,6 +20,7 @@ from locoman.scene import g1
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
 from locoman.scene.rotations import matrix_to_rpy, quat_wxyz_to_matrix, rpy_to_matrix
 from locoman.to.collision import obstacles_from_objects
+from locoman.to.compile import cache_dir
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import HANDS, ObjectModel
 from locoman.to.trajopt import (
@@ -120,7 +121,7 @@ def solve_scenario(
         cfg.contact,
         cfg.collision,
         cfg.solver,
-        Path(cfg.cache_dir),
+        cache_dir(cfg.cache_dir),
     )
     n = optimizer.schedule.nodes
     print(

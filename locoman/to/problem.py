@@ -36,6 +36,7 @@ from locoman.to.collision import (
     CollisionCfg,
     Obstacle,
     box_corners,
+    edge_point_count,
     penetration_residual,
     self_collision_residuals,
     sphere_box_penetration,
@@ -70,6 +71,7 @@ from locoman.to.layout import (
     ObjectModel,
 )
 from locoman.to.nlp import StageGroup
+from locoman.to.parameters import GlobalParameters, SymbolicGlobals
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +174,10 @@ def _par(p: ca.SX, name: str) -> ca.SX:
 class StageBuilder:
     """Builds and caches one stage function per (mode at k, mode at k + 1, last) triple.
 
+    Every function takes the global parameters theta (:mod:`locoman.to.parameters`) as its
+    last input: the numbers below only set the problem's structure (which terms exist, how
+    many edge points an obstacle has), and :attr:`parameters` holds their values.
+
     Args:
         kin: Symbolic kinematics of the G1.
         obj: The manipulated object.
@@ -192,8 +198,14 @@ class StageBuilder:
         collision: CollisionCfg,
         obstacles: tuple[Obstacle, ...],
     ) -> None:
-        self.kin, self.obj, self.w, self.contact = kin, obj, weights, contact
-        self.collision, self.obstacles = collision, obstacles
+        self.parameters = GlobalParameters.of(weights, contact, collision, obj, obstacles)
+        symbols = SymbolicGlobals(self.parameters.layout)
+        self.theta = symbols.theta
+        self.kin, self.obj = kin, symbols.object(obj)
+        self.w, self.contact = symbols.weights(weights), symbols.contact(contact)
+        self.collision, self.obstacles = symbols.collision(collision), symbols.obstacles(obstacles)
+        # Points per vertical edge of each obstacle, spaced by the object's half height.
+        self.edge_counts = [edge_point_count(o.half_extents[2], obj.com[2]) for o in obstacles]
         self.sole_half = np.asarray(frames.sole_half_extents)
         self.palm_radius = float(frames.palm_radius)
         self.palm_half_length = float(frames.palm_half_length)
@@ -218,7 +230,7 @@ class StageBuilder:
         """The node constraint tying the lifted kinematics to q, v at ``nodes``."""
         z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
         residual = _var(z, "kin") - self.kinematics(_var(z, "q"), _var(z, "v"))
-        fn = ca.Function("kinematics_node", [z, p], [residual, ca.SX(0), ca.SX(0, 1)])
+        fn = ca.Function("kinematics_node", [z, p, self.theta], [residual, ca.SX(0), ca.SX(0, 1)])
         rows = residual.numel()
         return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(rows), np.zeros(rows))
 
@@ -232,10 +244,12 @@ class StageBuilder:
         residuals = self_collision_residuals(
             self.kin.frame_pose, cfg.self_pairs, cfg.margin_m, cfg.softness
         )
-        of_q = ca.Function("self_collision", [self.kin.q], [residuals])
-        scale = np.sqrt(self.w.collision)
+        of_q = ca.Function("self_collision", [self.kin.q, self.theta], [residuals])
+        scale = ca.sqrt(self.w.collision)
         fn = ca.Function(
-            "self_collision_node", [z, p], [ca.SX(0, 1), ca.SX(0), scale * of_q(_var(z, "q"))]
+            "self_collision_node",
+            [z, p, self.theta],
+            [ca.SX(0, 1), ca.SX(0), scale * of_q(_var(z, "q"), self.theta)],
         )
         return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(0), np.zeros(0))
 
@@ -302,11 +316,10 @@ class StageBuilder:
         rows = [h1 - h - wrench * dt, q1 - q - v1 * dt]  # (1a), (1b)
         if mode_next.object_active:
             obj = self.obj
-            inertia, com_local = ca.DM(obj.inertia), ca.DM(obj.com)
             qo, vo = _var(z, "object_q"), _var(z, "object_v")
             qo1, vo1 = _var(z1, "object_q"), _var(z1, "object_v")
-            ho, co = rigid_body_momentum(qo, vo, obj.mass, inertia, com_local)
-            ho1, _ = rigid_body_momentum(qo1, vo1, obj.mass, inertia, com_local)
+            ho, co = rigid_body_momentum(qo, vo, obj.mass, obj.inertia, obj.com)
+            ho1, _ = rigid_body_momentum(qo1, vo1, obj.mass, obj.inertia, obj.com)
             wrench_o = wrench_sum(co, self._object_contacts(z, p, mode), obj.mass)
             rows += [ho1 - ho - wrench_o * dt, qo1 - qo - vo1 * dt]
         return rows
@@ -368,24 +381,24 @@ class StageBuilder:
             R_o, _, _ = self._object_frame(z)
             w = _var(z, "support_wrench")
             half = self.obj.half_extents
-            rows.append(friction_cone_cop(w[0:3], w[3:6], R_o, self.obj.friction, *half))
+            rows.append(friction_cone_cop(w[0:3], w[3:6], R_o, self.obj.friction, half[0], half[1]))
         return rows
 
     def _object_environment(self, z: ca.SX) -> list[ca.SX]:
         """Residuals of (12) of each corner of the object in each obstacle, and of the
         obstacles' vertical edges in the object."""
         R_o, p_o, _ = self._object_frame(z)
-        half = np.r_[self.obj.half_extents, self.obj.com[2]]
-        corners = [p_o + R_o @ ca.DM(c) for c in box_corners(half)]
-        centre = p_o + R_o @ ca.DM(self.obj.com)
+        half = self._object_half_size()
+        corners = [p_o + R_o @ c for c in box_corners(half)]
+        centre = p_o + R_o @ self.obj.com
         residuals = []
-        for obstacle in self.obstacles:
-            R, middle, box = ca.DM(obstacle.rotation), ca.DM(obstacle.centre), obstacle.half_extents
+        for obstacle, count in zip(self.obstacles, self.edge_counts, strict=True):
+            middle, R, box = obstacle.frame()
             for c in corners:
                 p = sphere_box_penetration(c, 0.0, middle, R, box, self.collision)
                 residuals.append(penetration_residual(p, self.collision.softness))
-            for point in vertical_edge_points(obstacle, half[2]):
-                p = sphere_box_penetration(ca.DM(point), 0.0, centre, R_o, half, self.collision)
+            for point in vertical_edge_points(obstacle, count):
+                p = sphere_box_penetration(point, 0.0, centre, R_o, half, self.collision)
                 residuals.append(penetration_residual(p, self.collision.softness))
         return residuals
 
@@ -404,8 +417,8 @@ class StageBuilder:
                     _var(z, "object_q"),
                     _var(z, "object_v"),
                     self.obj.mass,
-                    ca.DM(self.obj.inertia),
-                    ca.DM(self.obj.com),
+                    self.obj.inertia,
+                    self.obj.com,
                 )
                 total = self.kin.mass + self.obj.mass
                 c_all = (self.kin.mass * com + self.obj.mass * co) / total
@@ -440,8 +453,8 @@ class StageBuilder:
         residuals = []
         if cfg.object_body:
             R_o, p_o, _ = self._object_frame(z)
-            centre = p_o + R_o @ ca.DM(self.obj.com)
-            half = np.r_[self.obj.half_extents, self.obj.com[2]]
+            centre = p_o + R_o @ self.obj.com
+            half = self._object_half_size()
             points = _kin(z, "body_points")
             spheres = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
             spheres += [s for i in range(2) if not mode.hands[i] for s in palms[i]]
@@ -452,15 +465,16 @@ class StageBuilder:
             residuals += self._object_environment(z)
         if cfg.hands_environment:
             for obstacle in self.obstacles:
-                R, centre, box = (
-                    ca.DM(obstacle.rotation),
-                    ca.DM(obstacle.centre),
-                    obstacle.half_extents,
-                )
+                centre, R, box = obstacle.frame()
                 for point, radius in palms[0] + palms[1]:
                     p = sphere_box_penetration(point, radius, centre, R, box, cfg)
                     residuals.append(penetration_residual(p, self.collision.softness))
-        return np.sqrt(self.w.collision) * ca.vertcat(*residuals)
+        return ca.sqrt(self.w.collision) * ca.vertcat(*residuals)
+
+    def _object_half_size(self) -> ca.SX:
+        """(3,) the object's half sizes [m]: its patch's, and half its height (its frame
+        sits at the bottom face, the CoM at half height)."""
+        return ca.vertcat(self.obj.half_extents, self.obj.com[2])
 
     def _stage(
         self, mode: NodeMode, mode_next: NodeMode, last: bool, name: str
@@ -478,7 +492,7 @@ class StageBuilder:
         if last:
             cost += self.node_cost(z1, p1, mode_next)
             residuals = ca.vertcat(residuals, self.collision_residuals(z1, mode_next))
-        fn = ca.Function(name, [z, z1, p, p1], [ca.vertcat(eq, ineq), cost, residuals])
+        fn = ca.Function(name, [z, z1, p, p1, self.theta], [ca.vertcat(eq, ineq), cost, residuals])
         lower = np.zeros(eq.numel() + ineq.numel())
         upper = np.r_[np.zeros(eq.numel()), np.full(ineq.numel(), np.inf)]
         return fn, lower, upper

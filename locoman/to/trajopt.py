@@ -19,7 +19,8 @@ from locoman.to.collision import CollisionCfg, Obstacle
 from locoman.to.costs import CostWeights, averaged_over_nodes
 from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
-from locoman.to.nlp import NLPResult, StageNLP
+from locoman.to.nlp import NLPResult, SolverBuildError, StageNLP
+from locoman.to.parameters import GlobalParameters
 from locoman.to.problem import ContactCfg, NodeMode, StageBuilder
 from locoman.to.schedule import Schedule, ScheduleCfg, step_count, subtask_phases
 
@@ -78,8 +79,9 @@ class SolverCfg:
             fixed to 8 digits from iteration 165, and 1e-6 took 55 more than 1e-4.
         constraint_tolerance: IPOPT's constr_viol_tol [SI units of each constraint]: the
             dynamics (1) hold to this, whatever ``tolerance``.
-        compile: Compile the derivatives to C (cached by their hash) instead of
-            interpreting them: about 2 minutes once, then several times faster per iteration.
+        compile: Compile the derivatives to C (cached by their hash, once per problem
+            structure) instead of interpreting them: several times faster per iteration.
+        compile_flags: The C compiler's flags (:mod:`locoman.to.compile`).
         print_level: IPOPT's print level (5: one line per iteration, the progress).
         warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
             every node starts at the initial state.
@@ -90,6 +92,7 @@ class SolverCfg:
     tolerance: float = 1e-4
     constraint_tolerance: float = 1e-8
     compile: bool = True
+    compile_flags: list[str] = dataclasses.field(default_factory=lambda: ["-O1"])
     print_level: int = 5
     warm_start: bool = True
 
@@ -194,7 +197,7 @@ def _frames_columns(frames: np.ndarray) -> np.ndarray:
     return np.concatenate([f.ravel(order="F") for f in frames])
 
 
-def parameters(
+def node_parameters(
     inputs: TOInputs, schedule: Schedule, keyframe_costs: tuple[bool, bool]
 ) -> np.ndarray:
     """(N_PARAMS, N): references and switches per node.
@@ -364,8 +367,9 @@ def initial_guess(
 
 
 class TrajectoryOptimizer:
-    """The TO of one scenario, built once: new parameters (the keyframe switches)
-    re-solve without rebuilding.
+    """The TO of one scenario, built once: new parameters (the keyframe switches, and any
+    :class:`GlobalParameters` of the same layout: masses, weights, frictions) re-solve
+    without rebuilding.
 
     Args:
         inputs: The scenario.
@@ -403,6 +407,7 @@ class TrajectoryOptimizer:
         if self_collision is not None:
             groups.append(self_collision)
         self.kinematics = builder.kinematics
+        self.parameters = builder.parameters
         ipopt = {
             "max_iter": solver.max_iterations,
             "tol": solver.tolerance,
@@ -414,18 +419,43 @@ class TrajectoryOptimizer:
             "fixed_variable_treatment": "make_parameter",
         }
         self.nlp = StageNLP(
-            WIDTH, n, N_PARAMS, groups, ipopt, cache_dir if solver.compile else None
+            WIDTH,
+            n,
+            N_PARAMS,
+            builder.parameters.vector().size,
+            groups,
+            ipopt,
+            cache_dir if solver.compile else None,
+            solver.compile_flags,
         )
 
-    def solve(self, keyframe_costs: tuple[bool, bool] = (True, True)) -> Trajectory:
-        """Solve; a failed solve is a trajectory with ``success`` False, not an exception."""
+    def solve(
+        self,
+        keyframe_costs: tuple[bool, bool] = (True, True),
+        parameters: GlobalParameters | None = None,
+    ) -> Trajectory:
+        """Solve; a failed solve is a trajectory with ``success`` False, not an exception.
+
+        Args:
+            keyframe_costs: (9), (10) on.
+            parameters: New values of the global parameters (same layout as
+                :attr:`parameters`), e.g. another box mass; the compiled problem is reused.
+        """
+        parameters = parameters or self.parameters
+        if parameters.layout != self.parameters.layout:
+            raise SolverBuildError(
+                "the parameters' layout differs from the one this optimizer was built for "
+                "(another obstacle count?): build a new TrajectoryOptimizer"
+            )
         inputs, schedule, modes = self.inputs, self.schedule, self.modes
-        P = parameters(inputs, schedule, keyframe_costs)
+        P = node_parameters(inputs, schedule, keyframe_costs)
         lo, hi = bounds(inputs, schedule, modes, self.cfg)
         X0 = np.clip(initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass), lo, hi)
         q, v = X0[VARIABLES["q"]], X0[VARIABLES["v"]]
         X0[VARIABLES["kin"]] = np.asarray(self.kinematics.map(schedule.nodes)(q, v))
-        result = self.nlp.solve(X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), P)
+        result = self.nlp.solve(
+            X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), P, parameters.vector()
+        )
         return self._trajectory(result)
 
     def _trajectory(self, result: NLPResult) -> Trajectory:

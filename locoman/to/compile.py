@@ -1,0 +1,178 @@
+"""The TO's derivative functions as generated C, compiled once per structure and cached.
+
+A library is keyed by the hash of its C source, the compiler and the flags. Every number a
+sweep changes is an input of the functions (:mod:`locoman.to.parameters`), so the source,
+and the key, change only with the problem's structure. Each entry is ``to_<key>.so`` with
+``to_<key>.json`` beside it (the library's size and SHA-256), written before the library
+is renamed into place: a library that does not match its record (a truncated copy, which
+would kill the process with SIGBUS on load) is rebuilt, never loaded.
+
+Several processes may share a cache (the cells of a grid, the end-to-end test and the
+user's own runs, through ``LOCOMAN_CACHE_DIR``): every file is written under a name of its
+own and renamed into place, so they never see each other's partial files.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import time
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from pathlib import Path
+
+import casadi as ca
+
+from locoman.errors import SolverError
+
+CACHE_ENV = "LOCOMAN_CACHE_DIR"
+
+
+class SolverBuildError(SolverError):
+    """The NLP could not be built or compiled."""
+
+
+def cache_dir(configured: str | Path) -> Path:
+    """Where compiled libraries live: ``$LOCOMAN_CACHE_DIR`` if set, else ``configured``
+    (``solve.cache_dir``)."""
+    return Path(os.environ.get(CACHE_ENV) or configured)
+
+
+@dataclasses.dataclass(frozen=True)
+class Unit:
+    """One translation unit: functions compiled into one shared library."""
+
+    functions: tuple[ca.Function, ...]
+    source: str
+    key: str
+
+    @property
+    def name(self) -> str:
+        return self.functions[0].name().rsplit("_", 1)[0]
+
+
+def _unit(functions: Sequence[ca.Function], compiler: str, flags: Sequence[str]) -> Unit:
+    gen = ca.CodeGenerator("locoman_to.c", {"with_header": False})
+    for fn in functions:
+        gen.add(fn)
+    source = gen.dump()
+    digest = hashlib.sha256("\0".join([source, compiler, *flags]).encode()).hexdigest()[:16]
+    return Unit(tuple(functions), source, digest)
+
+
+def _record(library: Path) -> dict:
+    data = library.read_bytes()
+    return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _valid(library: Path) -> bool:
+    """The library exists and matches the record written when it was built."""
+    record = library.with_suffix(".json")
+    try:
+        return json.loads(record.read_text()) == _record(library)
+    except (OSError, ValueError):
+        return False
+
+
+def _build(unit: Unit, library: Path, compiler: str, flags: Sequence[str]) -> None:
+    """Compile ``unit`` into ``library``; its record first, then the library, each renamed
+    into place."""
+    tag = f"{os.getpid()}.{time.monotonic_ns()}"
+    c_file = library.with_name(f"{library.stem}.{tag}.c")
+    partial = library.with_name(f"{library.stem}.{tag}.so.part")
+    c_file.write_text(unit.source)
+    cmd = [compiler, *flags, "-shared", "-fPIC", str(c_file), "-o", str(partial), "-lm"]
+    try:
+        subprocess.run(cmd, check=True, capture_output=True, text=True)
+        record = library.with_name(f"{library.stem}.{tag}.json.part")
+        record.write_text(json.dumps(_record(partial)))
+        record.rename(library.with_suffix(".json"))
+        partial.rename(library)
+    except subprocess.CalledProcessError as exc:
+        raise SolverBuildError(
+            f"compiling the TO's {unit.name} failed ({' '.join(cmd)}): {exc.stderr[:2000]}"
+        ) from exc
+    finally:
+        c_file.unlink(missing_ok=True)
+        partial.unlink(missing_ok=True)
+
+
+def compile_units(
+    batches: Sequence[Sequence[ca.Function]],
+    directory: Path,
+    flags: Sequence[str] = ("-O1",),
+    jobs: int | None = None,
+) -> dict[str, ca.Function]:
+    """Each batch of functions as one compiled library, loaded from ``directory`` when a
+    valid one is there and built (``jobs`` at a time, default one per core) otherwise;
+    prints which unit, how many of how many, and the time, while it compiles.
+
+    Returns:
+        name -> the compiled function.
+
+    Raises:
+        SolverBuildError: No C compiler, or one failed.
+    """
+    compiler = os.environ.get("CC", "gcc")
+    units = [_unit(fns, compiler, flags) for fns in batches]
+    directory.mkdir(parents=True, exist_ok=True)
+    library = {u.key: directory / f"to_{u.key}.so" for u in units}
+    missing = list({u.key: u for u in units if not _valid(library[u.key])}.values())
+    if missing:
+        if shutil.which(compiler) is None:
+            raise SolverBuildError(
+                f"the TO compiles its derivatives to C, and the compiler {compiler!r} was not "
+                "found. Install it (Debian/Ubuntu: `apt-get install gcc`; `make setup` does "
+                "so as root), or set solve.solver.compile=false to interpret them, several "
+                "times slower per iteration."
+            )
+        _compile_all(missing, library, compiler, flags, jobs or os.cpu_count() or 1, directory)
+    # CasADi builds derivatives of the NLP's own f and g (the "_val" functions) when it sets
+    # IPOPT up, though with every oracle given (and no lam_p asked for) it never evaluates
+    # them; a compiled function has none, so those get finite differences on paper.
+    return {
+        fn.name(): ca.external(
+            fn.name(), str(library[u.key]), {"enable_fd": fn.name().endswith("_val")}
+        )
+        for u in units
+        for fn in u.functions
+    }
+
+
+def _compile_all(
+    units: list[Unit],
+    library: dict[str, Path],
+    compiler: str,
+    flags: Sequence[str],
+    jobs: int,
+    directory: Path,
+) -> None:
+    """Build the biggest units first (they bound the wall time), printing each as it ends."""
+    units = sorted(units, key=lambda u: -len(u.source))
+    size = sum(len(u.source) for u in units) / 1e6
+    print(
+        f"[to] compiling {len(units)} libraries ({size:.1f} MB of C, {compiler} "
+        f"{' '.join(flags)}, {jobs} at a time) into {directory}; once per problem structure",
+        flush=True,
+    )
+    tic = time.perf_counter()
+
+    def build(unit: Unit) -> float:
+        start = time.perf_counter()
+        _build(unit, library[unit.key], compiler, flags)
+        return time.perf_counter() - start
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = {pool.submit(build, u): u for u in units}
+        for done, future in enumerate(as_completed(futures), start=1):
+            unit = futures[future]
+            seconds = future.result()
+            print(
+                f"[to]   {done}/{len(units)} {unit.name} ({len(unit.source) / 1e6:.1f} MB) "
+                f"in {seconds:.0f} s; {time.perf_counter() - tic:.0f} s elapsed",
+                flush=True,
+            )
