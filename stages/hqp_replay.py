@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from locoman.artifacts import read_npz, write_json_atomic
+from locoman.artifacts import read_npz, write_metrics
 from locoman.config import load_params
 from locoman.errors import ConfigError
 from locoman.hqp.replay import ReplayTask, joint_limits, replay
@@ -57,7 +57,7 @@ def main() -> None:
         metrics[name] = replay_metrics(
             log, task, joint_limits(model, h), h.dt, h.success_tolerance_m
         )
-    write_json_atomic(out / "metrics.json", metrics)
+    write_metrics(out, metrics)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from locoman.artifacts import read_npz, write_json_atomic, write_npz
+from locoman.artifacts import read_npz, write_metrics, write_npz
 from locoman.artifacts.io import write_text_atomic
 from locoman.config import load_params
 from locoman.kmp.demos import Demos, task_points
@@ -68,7 +68,7 @@ def main() -> None:
         "fit_seconds": fit_s,
         "predict_seconds_26s_at_1khz": predict_seconds(ref, k, duration),
     }
-    write_json_atomic(out / "metrics.json", metrics)
+    write_metrics(out, metrics)
 
 
 if __name__ == "__main__":

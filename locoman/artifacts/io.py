@@ -58,6 +58,56 @@ def write_json_atomic(path: str | Path, data: Any) -> None:
     write_text_atomic(path, json.dumps(data, indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
+# Keys of wall-clock figures, wherever they sit in a stage's metrics: they depend on the
+# machine and its load, so they go to timing.json, which DVC does not track, and not to the
+# metrics.json that `dvc metrics`/`dvc exp show` compare.
+WALL_CLOCK_KEYS = frozenset(
+    {
+        "seconds",
+        "seconds_per_subtask",
+        "seconds_per_keyframe",
+        "keyframes_per_second",
+        "build_time_s",
+        "solve_time_s",
+        "gmr_seconds",
+        "kmp_seconds",
+        "fit_seconds",
+        "predict_seconds_26s_at_1khz",
+        "hqp_step_median_s",
+        "hqp_step_p99_s",
+        "realtime_factor",
+    }
+)
+
+
+def split_wall_clock(data: Any) -> tuple[Any, Any]:
+    """(science, timing): ``data`` without the :data:`WALL_CLOCK_KEYS`, and those keys alone
+    with the dicts and lists that lead to them (None where there are none)."""
+    if isinstance(data, dict):
+        science, timing = {}, {}
+        for key, value in data.items():
+            if key in WALL_CLOCK_KEYS:
+                timing[key] = value
+                continue
+            science[key], inner = split_wall_clock(value)
+            if inner is not None:
+                timing[key] = inner
+        return science, timing or None
+    if isinstance(data, list):
+        pairs = [split_wall_clock(v) for v in data]
+        timings = [t for _, t in pairs]
+        return [s for s, _ in pairs], timings if any(t is not None for t in timings) else None
+    return data, None
+
+
+def write_metrics(out_dir: str | Path, metrics: Mapping[str, Any]) -> None:
+    """A stage's figures: ``metrics.json`` the results, ``timing.json`` beside it the
+    wall-clock figures (:func:`split_wall_clock`), each atomically."""
+    science, timing = split_wall_clock(dict(metrics))
+    write_json_atomic(Path(out_dir) / "metrics.json", science)
+    write_json_atomic(Path(out_dir) / "timing.json", timing or {})
+
+
 def _meta(schema: ArtifactSchema) -> dict[str, Any]:
     return {"name": schema.name, "version": schema.version, "producer": schema.producer}
 

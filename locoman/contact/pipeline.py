@@ -8,7 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from locoman.artifacts import read_json, read_npz, write_json_atomic, write_npz, write_png
+from locoman.artifacts import (
+    read_json,
+    read_npz,
+    write_metrics,
+    write_npz,
+    write_png,
+)
 from locoman.config.contacts import ContactsCfg
 from locoman.contact import semantic
 from locoman.contact.io import CONTACTS, PLOTS_DIR, subtask_file
@@ -147,7 +153,7 @@ def contacts_scenario(
             row |= score_subtask(truth, inputs, result)
         rows.append(row)
     metrics = _aggregate(rows, cfg)
-    write_json_atomic(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics
 
 

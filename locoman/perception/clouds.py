@@ -15,7 +15,13 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from locoman.artifacts import read_json, read_npz, write_json_atomic, write_npz, write_png
+from locoman.artifacts import (
+    read_json,
+    read_npz,
+    write_metrics,
+    write_npz,
+    write_png,
+)
 from locoman.config.perception import CloudsCfg, DepthErrorCfg
 from locoman.errors import SceneError
 from locoman.perception import camera
@@ -196,7 +202,7 @@ def clouds_scenario(
             ),
         }
     metrics["per_subtask"] = rows
-    write_json_atomic(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics
 
 

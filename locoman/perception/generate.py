@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from locoman.artifacts import write_json, write_json_atomic, write_npz, write_png
+from locoman.artifacts import write_json, write_metrics, write_npz, write_png
 from locoman.config.perception import GenerateCfg
 from locoman.perception import flux
 from locoman.perception.demonstrator import ContactTarget, map_to_object
@@ -102,7 +102,7 @@ def generate_scenario(
     }
     if generator is None:
         metrics["ik_residual_max_m"] = max(r["ik_residual_m"] for r in per_subtask)
-    write_json_atomic(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from locoman.artifacts import read_json, read_npz, write_json_atomic, write_npz
+from locoman.artifacts import read_json, read_npz, write_metrics, write_npz
 from locoman.config.perception import MasksCfg
 from locoman.errors import ConfigError, ModelError
 from locoman.perception import keypoints as kp
@@ -124,7 +124,7 @@ def masks_scenario(
                     )
         rows.append(row)
     metrics = _summary(rows, cfg)
-    write_json_atomic(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics
 
 

@@ -9,7 +9,13 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from locoman.artifacts import read_json, read_npz, write_json_atomic, write_npz, write_png
+from locoman.artifacts import (
+    read_json,
+    read_npz,
+    write_metrics,
+    write_npz,
+    write_png,
+)
 from locoman.artifacts.mcap_io import write_frame_transforms
 from locoman.config.retarget import RetargetCfg
 from locoman.contact.io import CONTACTS
@@ -218,5 +224,5 @@ def _aggregate(rows: list[dict[str, Any]], seconds: list[float], out_dir: Path) 
         "truth_contact_error_max_m": max(truth) if truth else None,
         "per_subtask": rows,
     }
-    write_json_atomic(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics

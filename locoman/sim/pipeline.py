@@ -17,7 +17,12 @@ import cv2
 import mujoco
 import numpy as np
 
-from locoman.artifacts import read_npz, write_json_atomic, write_png, write_text_atomic
+from locoman.artifacts import (
+    read_npz,
+    write_metrics,
+    write_png,
+    write_text_atomic,
+)
 from locoman.artifacts.pictures import fit_tile
 from locoman.config.to import EvaluateCfg
 from locoman.retarget.robot import contact_frames
@@ -124,5 +129,5 @@ def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Eval
         writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
     write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
     write_png(out_dir / "plots" / "filmstrip.png", filmstrip(model, traj, cfg.filmstrip_frames))
-    write_json_atomic(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics

@@ -236,10 +236,16 @@ class StageNLP:
                 ["triu_hess_gamma_x_x"],
             ),
         }
-        options = {"print_time": False, "calc_lam_p": False, "ipopt": ipopt, **self.oracles}
-        self.solver = ca.nlpsol("to", "ipopt", {"x": X, "p": P, "f": cost, "g": G}, options)
+        self._problem = {"x": X, "p": P, "f": cost, "g": G}
+        self.solver = self.ipopt(ipopt)
         _single_threaded_blas()
         self.build_time_s = time.perf_counter() - tic
+
+    def ipopt(self, options: dict) -> ca.Function:
+        """An IPOPT instance on this NLP's oracles with ``options``; set it as
+        :attr:`solver` to solve with other options without rebuilding."""
+        opts = {"print_time": False, "calc_lam_p": False, "ipopt": options, **self.oracles}
+        return ca.nlpsol("to", "ipopt", self._problem, opts)
 
     def solve(
         self,

@@ -8,7 +8,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from locoman.artifacts import read_npz, write_json_atomic, write_npz
+from locoman.artifacts import read_npz, write_metrics, write_npz
 from locoman.artifacts.mcap_io import write_frame_transforms
 from locoman.config.to import SolveCfg
 from locoman.contact.io import CONTACTS
@@ -165,8 +165,8 @@ def solve_scenario(
         },
     )
     write_frame_transforms(out_dir / MCAP_FILE, traj.time, _poses(traj, inputs.obj.name))
-    write_json_atomic(
-        out_dir / "metrics.json",
+    write_metrics(
+        out_dir,
         {
             "status": traj.status,
             "success": traj.success,
