@@ -13,9 +13,10 @@ export PATH := $(abspath $(BIN)):$(PATH)
 
 setup: $(STAMP)
 
-# open3d links against libusb-1.0, which fresh Debian images lack; everything else is on PyPI.
+# open3d links against libusb-1.0 and the TO compiles C with gcc, which fresh Debian images
+# may lack; everything else is on PyPI.
 $(STAMP): pyproject.toml requirements.lock
-	@ldconfig -p | grep -q 'libusb-1.0.so.0' || bash .ci/install-system-deps
+	@(ldconfig -p | grep -q 'libusb-1.0.so.0' && command -v gcc >/dev/null) || bash .ci/install-system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev]"
@@ -39,8 +40,8 @@ bench: setup
 	$(BIN)/python benchmarks/perception.py
 	$(BIN)/dvc repro retarget
 	$(BIN)/python benchmarks/retarget_speed.py
-	$(BIN)/dvc repro solve
-	$(BIN)/python benchmarks/to_tiny.py
+	$(BIN)/dvc repro retarget@tiny
+	$(BIN)/python benchmarks/to_solvers.py
 
 # Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
 params: setup

@@ -15,6 +15,7 @@ from locoman.sim.evaluate import cone_violation, dynamics_residuals, geom_label,
 from locoman.to.collision import CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.layout import ObjectModel
+from locoman.to.parameters import GlobalParameters
 from locoman.to.problem import ContactCfg
 from locoman.to.schedule import ScheduleCfg, step_count, subtask_phases
 from locoman.to.trajopt import Keyframe, SolverCfg, TOInputs, TrajectoryOptimizer, node_modes
@@ -78,6 +79,29 @@ def test_a_failed_solve_is_returned_with_its_status(tmp_path_factory):
     assert not traj.success
     assert traj.status == "Maximum_Iterations_Exceeded"
     assert traj.iterations == 1
+
+
+def test_new_weights_re_solve_the_same_built_problem(tmp_path_factory, squat):
+    """A sweep's cell: the squat's optimizer, given the parameters of a lower base height
+    reference and a heavier weight on it, re-solves without rebuilding, and the robot goes
+    down further."""
+    optimizer = _optimizer(tmp_path_factory, max_iterations=200)
+    nlp = optimizer.nlp
+    lower = dataclasses.replace(CostWeights(), base_height_m=0.6, base_height=1e4)
+    params = GlobalParameters.of(lower, ContactCfg(), CollisionCfg(), BOX, ())
+    deeper = optimizer.solve(parameters=params)
+    assert optimizer.nlp is nlp
+    assert deeper.success, deeper.status
+    assert deeper.q[-1, 2] < squat.q[-1, 2] - 0.02
+
+
+def test_a_warm_start_from_the_optimum_converges_in_a_few_iterations(tmp_path_factory, squat):
+    optimizer = _optimizer(tmp_path_factory, max_iterations=200)
+    cold = optimizer.solve()
+    warm = optimizer.solve(warm_start=cold)
+    assert warm.success, warm.status
+    assert 2 * warm.iterations < cold.iterations, (warm.iterations, cold.iterations)
+    assert warm.cost == pytest.approx(cold.cost, rel=1e-6)
 
 
 def test_step_count_is_even_and_bounded_by_length_and_turn():

@@ -53,12 +53,15 @@ class StageGroup:
         stages: Stage indices k (a stage couples nodes k and k + 1), or node indices.
         lower: (rows,) lower bounds of g.
         upper: (rows,) upper bounds of g.
+        constraint_curvature: The Hessian of the Lagrangian includes lambda' nabla^2 g of
+            this group; False leaves it out (a Gauss-Newton Hessian for its constraints).
     """
 
     function: ca.Function
     stages: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    constraint_curvature: bool = True
 
     @property
     def rows(self) -> int:
@@ -68,6 +71,29 @@ class StageGroup:
     def span(self) -> int:
         """Nodes one call touches: 2 for a stage, 1 for a node function."""
         return (self.function.n_in() - 1) // 2
+
+
+@dataclasses.dataclass(frozen=True)
+class WarmStart:
+    """A primal-dual point of an NLP of the same structure (the previous cell of a grid) to
+    start IPOPT from: primal x, bound multipliers lam_x, constraint multipliers lam_g."""
+
+    x: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+
+
+# IPOPT's warm start: the point is taken as it is, pushed off the bounds by little, and the
+# barrier starts small, as near an optimum it should.
+WARM_START_OPTIONS = {
+    "warm_start_init_point": "yes",
+    "warm_start_bound_push": 1e-6,
+    "warm_start_bound_frac": 1e-6,
+    "warm_start_slack_bound_push": 1e-6,
+    "warm_start_slack_bound_frac": 1e-6,
+    "warm_start_mult_bound_push": 1e-6,
+    "mu_init": 1e-4,
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,9 +108,14 @@ class NLPResult:
     cost: float
     max_constraint_violation: float
     solve_time_s: float
+    lam_x: np.ndarray
+
+    @property
+    def warm_start(self) -> WarmStart:
+        return WarmStart(self.x, self.lam_x, self.lam_g)
 
 
-def _derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
+def stage_derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     """Per-stage (g, l), (g, nz(J)), (l, grad l), nz(triu H) functions of one group; l is
     the whole cost, H the exact Hessian of the Lagrangian but for the residuals' Gauss-Newton
     part."""
@@ -100,8 +131,9 @@ def _derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     jac = ca.jacobian(g, zz)
     grad = ca.densify(ca.gradient(cost, zz))
     jac_r = ca.jacobian(residuals, zz)
+    curvature = ca.dot(lam, g) if group.constraint_curvature else 0.0
     hess = ca.triu(
-        ca.hessian(sigma * smooth + ca.dot(lam, g), zz)[0] + 2.0 * sigma * (jac_r.T @ jac_r)
+        ca.hessian(sigma * smooth + curvature, zz)[0] + 2.0 * sigma * (jac_r.T @ jac_r)
     )
     name = fn.name()
     return (
@@ -149,7 +181,7 @@ class StageNLP:
             raise SolverBuildError("every stage 0 .. N-2 must be in exactly one group")
         self.width, self.nodes, self.n_params, self.n_theta = width, nodes, n_params, n_theta
         self.groups = list(groups)
-        derivs = [_derivatives(g, width) for g in self.groups]
+        derivs = [stage_derivatives(g, width) for g in self.groups]
         functions = [f for fns, _ in derivs for f in fns]
         if cache_dir is not None:
             loaded = compile_units([fns for fns, _ in derivs], cache_dir, compile_flags)
@@ -237,7 +269,9 @@ class StageNLP:
             ),
         }
         self._problem = {"x": X, "p": P, "f": cost, "g": G}
+        self._options = dict(ipopt)
         self.solver = self.ipopt(ipopt)
+        self._warm_solver: ca.Function | None = None
         _single_threaded_blas()
         self.build_time_s = time.perf_counter() - tic
 
@@ -254,19 +288,31 @@ class StageNLP:
         ubx: np.ndarray,
         params: np.ndarray,
         theta: np.ndarray,
+        warm: WarmStart | None = None,
     ) -> NLPResult:
-        """Solve from ``x0``; ``params`` is (n_params, N), ``theta`` (n_theta,). A failed
-        solve is returned with IPOPT's status, not raised."""
+        """Solve from ``x0``, or from ``warm``'s primal-dual point (IPOPT's warm start);
+        ``params`` is (n_params, N), ``theta`` (n_theta,). A failed solve is returned with
+        IPOPT's status, not raised."""
         if theta.shape != (self.n_theta,):
             raise SolverBuildError(
                 f"theta has shape {theta.shape}; this NLP was built for ({self.n_theta},)"
             )
         p = np.r_[params.ravel(order="F"), theta]
+        args = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": self.lbg, "ubg": self.ubg, "p": p}
+        solver = self.solver
+        if warm is not None:
+            if warm.x.shape != (self.n_x,) or warm.lam_g.shape != (self.n_g,):
+                raise SolverBuildError("the warm start is of an NLP of another structure")
+            if self._warm_solver is None:
+                self._warm_solver = self.ipopt(self._options | WARM_START_OPTIONS)
+            solver = self._warm_solver
+            x_start = np.clip(warm.x, lbx, ubx)
+            args |= {"x0": x_start, "lam_x0": warm.lam_x, "lam_g0": warm.lam_g}
         tic = time.perf_counter()
         with _heap_kept():
-            out = self.solver(x0=x0, lbx=lbx, ubx=ubx, lbg=self.lbg, ubg=self.ubg, p=p)
+            out = solver(**args)
         elapsed = time.perf_counter() - tic
-        stats = self.solver.stats()
+        stats = solver.stats()
         x = np.asarray(out["x"]).ravel()
         g = np.asarray(out["g"]).ravel()
         violation = max(
@@ -285,6 +331,7 @@ class StageNLP:
             cost=float(out["f"]),
             max_constraint_violation=violation,
             solve_time_s=elapsed,
+            lam_x=np.asarray(out["lam_x"]).ravel(),
         )
 
 

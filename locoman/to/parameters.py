@@ -95,6 +95,19 @@ class GlobalParameters:
         """The values, concatenated in layout order."""
         return np.concatenate(list(self.values.values()))
 
+    def object(self, template: ObjectModel) -> ObjectModel:
+        """``template`` with this vector's mass, inertia, CoM, half sizes and friction: the
+        bounds and the initial guess of the TO use the same object as its functions."""
+        v = self.values
+        return dataclasses.replace(
+            template,
+            mass=float(v["object.mass"][0]),
+            inertia=v["object.inertia"].reshape(3, 3, order="F"),
+            com=v["object.com"].copy(),
+            half_extents=v["object.half_extents"].copy(),
+            friction=float(v["object.friction"][0]),
+        )
+
 
 class SymbolicGlobals:
     """The global parameters as one SX vector ``theta``, and the configuration objects of

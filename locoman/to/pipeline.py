@@ -108,12 +108,9 @@ def _poses(traj: Trajectory, object_name: str) -> dict[str, tuple[np.ndarray, np
     return {k: (np.array(p), np.array(r)) for k, (p, r) in out.items()}
 
 
-def solve_scenario(
-    scene_dir: Path, contacts_dir: Path, retarget_dir: Path, out_dir: Path, cfg: SolveCfg
-) -> Trajectory:
-    """Build and solve the TO; write the trajectory, its MCAP and the solver's metrics. A
-    failed solve is written too, with its status."""
-    inputs = load_inputs(scene_dir, contacts_dir, retarget_dir)
+def build_optimizer(inputs: TOInputs, cfg: SolveCfg) -> TrajectoryOptimizer:
+    """The TO of ``inputs`` with the settings of ``cfg`` (compiled, or loaded from the
+    cache, once per problem structure)."""
     optimizer = TrajectoryOptimizer(
         inputs,
         cfg.schedule,
@@ -123,13 +120,35 @@ def solve_scenario(
         cfg.solver,
         cache_dir(cfg.cache_dir),
     )
-    n = optimizer.schedule.nodes
     print(
-        f"[solve] {n} nodes, {optimizer.nlp.n_x} variables, {optimizer.nlp.n_g} constraints, "
-        f"built in {optimizer.nlp.build_time_s:.1f} s",
+        f"[solve] {optimizer.schedule.nodes} nodes, {optimizer.nlp.n_x} variables, "
+        f"{optimizer.nlp.n_g} constraints, built in {optimizer.nlp.build_time_s:.1f} s",
         flush=True,
     )
+    return optimizer
+
+
+def solve_scenario(
+    scene_dir: Path, contacts_dir: Path, retarget_dir: Path, out_dir: Path, cfg: SolveCfg
+) -> Trajectory:
+    """Build and solve the TO; write the trajectory, its MCAP and the solver's metrics. A
+    failed solve is written too, with its status."""
+    inputs = load_inputs(scene_dir, contacts_dir, retarget_dir)
+    optimizer = build_optimizer(inputs, cfg)
     traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
+    write_solution(out_dir, traj, inputs, optimizer, cfg)
+    return traj
+
+
+def write_solution(
+    out_dir: Path,
+    traj: Trajectory,
+    inputs: TOInputs,
+    optimizer: TrajectoryOptimizer,
+    cfg: SolveCfg,
+) -> None:
+    """The stage's outputs: trajectory, MCAP, metrics (and timing)."""
+    n = optimizer.schedule.nodes
     goal = next((kf.goal for kf in reversed(inputs.keyframes) if kf.goal is not None), None)
     write_npz(
         out_dir / TRAJECTORY_FILE,
@@ -182,4 +201,3 @@ def solve_scenario(
             "phases": [[p.name, p.subtask, p.nodes] for p in optimizer.schedule.phases],
         },
     )
-    return traj

@@ -217,22 +217,31 @@ class StageBuilder:
         self._cache: dict[tuple, tuple[ca.Function, np.ndarray, np.ndarray]] = {}
 
     def group(
-        self, mode: NodeMode, mode_next: NodeMode, last: bool, stages: np.ndarray
+        self,
+        mode: NodeMode,
+        mode_next: NodeMode,
+        last: bool,
+        stages: np.ndarray,
+        curvature: bool = True,
     ) -> StageGroup:
-        """The stage group of the given stages, which share ``(mode, mode_next, last)``."""
+        """The stage group of the given stages, which share ``(mode, mode_next, last)``;
+        without ``curvature`` the constraints' second derivatives stay out of the Hessian."""
         key = (mode, mode_next, last)
         if key not in self._cache:
             self._cache[key] = self._stage(mode, mode_next, last, f"stage_{len(self._cache)}")
         fn, lower, upper = self._cache[key]
-        return StageGroup(fn, np.asarray(stages, dtype=int), lower, upper)
+        return StageGroup(fn, np.asarray(stages, dtype=int), lower, upper, curvature)
 
-    def kinematics_group(self, nodes: np.ndarray) -> StageGroup:
-        """The node constraint tying the lifted kinematics to q, v at ``nodes``."""
+    def kinematics_group(self, nodes: np.ndarray, curvature: bool = True) -> StageGroup:
+        """The node constraint tying the lifted kinematics to q, v at ``nodes``; without
+        ``curvature`` its second derivatives stay out of the Hessian (Gauss-Newton)."""
         z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
         residual = _var(z, "kin") - self.kinematics(_var(z, "q"), _var(z, "v"))
         fn = ca.Function("kinematics_node", [z, p, self.theta], [residual, ca.SX(0), ca.SX(0, 1)])
         rows = residual.numel()
-        return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(rows), np.zeros(rows))
+        return StageGroup(
+            fn, np.asarray(nodes, dtype=int), np.zeros(rows), np.zeros(rows), curvature
+        )
 
     def self_collision_group(self, nodes: np.ndarray) -> StageGroup | None:
         """(12) between the spheres of each of ``collision.self_pairs``, from q; None when

@@ -19,7 +19,7 @@ from locoman.to.collision import CollisionCfg, Obstacle
 from locoman.to.costs import CostWeights, averaged_over_nodes
 from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
-from locoman.to.nlp import NLPResult, SolverBuildError, StageNLP
+from locoman.to.nlp import NLPResult, SolverBuildError, StageNLP, WarmStart
 from locoman.to.parameters import GlobalParameters
 from locoman.to.problem import ContactCfg, NodeMode, StageBuilder
 from locoman.to.schedule import Schedule, ScheduleCfg, step_count, subtask_phases
@@ -67,11 +67,24 @@ class TOInputs:
     obstacles: tuple[Obstacle, ...] = ()
 
 
+# The solver backends (``solve.solver.backend``): IPOPT's options for each. MUMPS is the
+# default: on ``tiny`` SPRAL took 3.0 s per iteration against MUMPS's 0.16 s
+# (benchmarks/to_solvers.py). fatrop is not a backend: see the README's TO section.
+BACKENDS: dict[str, dict[str, str]] = {
+    "ipopt_mumps": {"linear_solver": "mumps"},
+    "ipopt_spral": {"linear_solver": "spral"},
+}
+
+
+HESSIANS = ("gauss_newton", "exact")
+
+
 @dataclasses.dataclass
 class SolverCfg:
     """IPOPT and the time grid.
 
     Attributes:
+        backend: A key of :data:`BACKENDS`: IPOPT with MUMPS or with SPRAL.
         dt_bounds: Bounds of each time step [s].
         max_iterations: IPOPT's max_iter.
         tolerance: IPOPT's tol, on its scaled optimality error. The collision penalties'
@@ -85,8 +98,17 @@ class SolverCfg:
         print_level: IPOPT's print level (5: one line per iteration, the progress).
         warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
             every node starts at the initial state.
+        hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
+            ``gauss_newton`` (default): the costs' exact Hessian, the penalties' Gauss-Newton
+            one, and none of the constraints' second derivatives; ``exact``: with the
+            constraints' lambda' nabla^2 g too. Both converge to the same KKT points (the
+            Hessian is not in the KKT conditions); on ``tiny`` the exact one is indefinite
+            (the products f dt and v dt of (1), the kinematics' trigonometry), IPOPT
+            regularised it in nearly every iteration (2.3 factorisations each) and took 148
+            iterations, 24 s, where Gauss-Newton takes 58, 4.6 s, to the same cost.
     """
 
+    backend: str = "ipopt_mumps"
     dt_bounds: list[float] = dataclasses.field(default_factory=lambda: [0.02, 0.08])
     max_iterations: int = 500
     tolerance: float = 1e-4
@@ -95,6 +117,7 @@ class SolverCfg:
     compile_flags: list[str] = dataclasses.field(default_factory=lambda: ["-O1"])
     print_level: int = 5
     warm_start: bool = True
+    hessian: str = "gauss_newton"
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -106,6 +129,10 @@ class SolverCfg:
             errors.append(("constraint_tolerance", "must be > 0"))
         if not 0 <= self.print_level <= 12:
             errors.append(("print_level", "IPOPT's print level is 0..12"))
+        if self.backend not in BACKENDS:
+            errors.append(("backend", f"must be one of {sorted(BACKENDS)}"))
+        if self.hessian not in HESSIANS:
+            errors.append(("hessian", f"must be one of {list(HESSIANS)}"))
         return errors
 
 
@@ -142,6 +169,7 @@ class Trajectory:
     phase: np.ndarray  # (N,) str
     subtask: np.ndarray  # (N,) int
     hand_points: np.ndarray  # (2, 3) hand contacts in the object frame [m]
+    warm_start: WarmStart | None = None  # the primal-dual point, for the next grid cell
 
     @property
     def time(self) -> np.ndarray:
@@ -401,14 +429,18 @@ class TrajectoryOptimizer:
         keys: dict[tuple, list[int]] = {}
         for k in range(n - 1):
             keys.setdefault((self.modes[k], self.modes[k + 1], k == n - 2), []).append(k)
-        groups = [builder.group(*key, np.array(stages)) for key, stages in keys.items()]
-        groups.append(builder.kinematics_group(np.arange(n)))
+        curvature = solver.hessian == "exact"
+        groups = [
+            builder.group(*key, np.array(stages), curvature) for key, stages in keys.items()
+        ]
+        groups.append(builder.kinematics_group(np.arange(n), curvature))
         self_collision = builder.self_collision_group(np.arange(1, n))
         if self_collision is not None:
             groups.append(self_collision)
         self.kinematics = builder.kinematics
         self.parameters = builder.parameters
         ipopt = {
+            **BACKENDS[solver.backend],
             "max_iter": solver.max_iterations,
             "tol": solver.tolerance,
             "constr_viol_tol": solver.constraint_tolerance,
@@ -433,6 +465,7 @@ class TrajectoryOptimizer:
         self,
         keyframe_costs: tuple[bool, bool] = (True, True),
         parameters: GlobalParameters | None = None,
+        warm_start: Trajectory | None = None,
     ) -> Trajectory:
         """Solve; a failed solve is a trajectory with ``success`` False, not an exception.
 
@@ -440,6 +473,8 @@ class TrajectoryOptimizer:
             keyframe_costs: (9), (10) on.
             parameters: New values of the global parameters (same layout as
                 :attr:`parameters`), e.g. another box mass; the compiled problem is reused.
+            warm_start: A solution of this optimizer (another cell of a grid): IPOPT
+                starts from its primal-dual point instead of Sec. IV-C.2's guess.
         """
         parameters = parameters or self.parameters
         if parameters.layout != self.parameters.layout:
@@ -447,14 +482,20 @@ class TrajectoryOptimizer:
                 "the parameters' layout differs from the one this optimizer was built for "
                 "(another obstacle count?): build a new TrajectoryOptimizer"
             )
-        inputs, schedule, modes = self.inputs, self.schedule, self.modes
+        inputs = dataclasses.replace(self.inputs, obj=parameters.object(self.inputs.obj))
+        schedule, modes = self.schedule, self.modes
         P = node_parameters(inputs, schedule, keyframe_costs)
         lo, hi = bounds(inputs, schedule, modes, self.cfg)
         X0 = np.clip(initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass), lo, hi)
         q, v = X0[VARIABLES["q"]], X0[VARIABLES["v"]]
         X0[VARIABLES["kin"]] = np.asarray(self.kinematics.map(schedule.nodes)(q, v))
         result = self.nlp.solve(
-            X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), P, parameters.vector()
+            X0.ravel(order="F"),
+            lo.ravel(order="F"),
+            hi.ravel(order="F"),
+            P,
+            parameters.vector(),
+            warm_start.warm_start if warm_start is not None else None,
         )
         return self._trajectory(result)
 
@@ -493,6 +534,7 @@ class TrajectoryOptimizer:
             phase=np.array(phases),
             subtask=np.array([self.schedule.subtask_of(k) for k in range(n)]),
             hand_points=self.inputs.hand_points.copy(),
+            warm_start=result.warm_start,
         )
 
 
