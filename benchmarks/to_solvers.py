@@ -1,7 +1,7 @@
-"""The TO's solver backends side by side on ``tiny``, as the node count grows.
+"""The TO's solver settings side by side on ``tiny``, as the node count grows.
 
 Usage: python benchmarks/to_solvers.py [--scales 1 2 4] [--repeats 3]
-       [--backends ipopt_mumps ipopt_spral] [--max-iterations N]
+       [--configs ipopt_mumps:gauss_newton ipopt_mumps:exact] [--spral-iterations 20]
        [--out benchmarks/results/to_solvers.json]
 
 Each scale multiplies every phase's node count of ``solve.schedule`` (params.yaml); the
@@ -10,8 +10,11 @@ retarget@tiny`` first). The compiled derivatives do not depend on the node count
 fresh cache compiles, once. For every backend and scale: the median of ``--repeats`` runs of
 the solve time, the iterations, the time per iteration, the final cost, and whether the
 evaluation's checks (``evaluate`` stage: dynamics, friction, slip, penetration, goal) pass.
-One run of the script measures every backend, so their ratios are comparable; ``growth``
-is the exponent b of solve time ~ nodes^b fitted over the scales.
+A config is ``backend:hessian`` (``solve.solver.backend``, ``solve.solver.hessian``). One
+run of the script measures every config, so their ratios are comparable; ``growth`` is the
+exponent b of solve time ~ nodes^b fitted over the scales. IPOPT with SPRAL takes seconds
+per iteration here, so it is probed at the default node count for ``--spral-iterations``
+iterations (0: not at all) instead of solved.
 """
 
 from __future__ import annotations
@@ -74,25 +77,30 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scales", type=float, nargs="+", default=[1.0, 2.0, 4.0])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--backends", nargs="+", default=["ipopt_mumps"], choices=BACKENDS)
-    parser.add_argument("--max-iterations", type=int, default=None)
+    parser.add_argument(
+        "--configs", nargs="+", default=["ipopt_mumps:gauss_newton", "ipopt_mumps:exact"]
+    )
+    parser.add_argument("--spral-iterations", type=int, default=20)
     parser.add_argument("--out", default="benchmarks/results/to_solvers.json")
     args = parser.parse_args()
     params = load_params()
     cfg = params.solve
     inputs = load_inputs(ROOT / "scene", ROOT / "contacts", ROOT / "retarget")
     rows = []
-    for backend in args.backends:
-        solver = dataclasses.replace(cfg.solver, print_level=0, backend=backend)
-        if args.max_iterations:
-            solver = dataclasses.replace(solver, max_iterations=args.max_iterations)
+    for config in args.configs:
+        backend, hessian = config.split(":")
+        if backend not in BACKENDS:
+            parser.error(f"unknown backend {backend!r}; one of {sorted(BACKENDS)}")
+        solver = dataclasses.replace(cfg.solver, print_level=0, backend=backend, hessian=hessian)
         for scale in args.scales:
             run_cfg = dataclasses.replace(cfg, solver=solver, schedule=_scaled(cfg.schedule, scale))
             optimizer = build_optimizer(inputs, run_cfg)
             runs = [_run(optimizer, inputs, run_cfg, params.evaluate) for _ in range(args.repeats)]
             times = [r["solve_time_s"] for r in runs]
             row = {
+                "config": config,
                 "backend": backend,
+                "hessian": hessian,
                 "scale": scale,
                 "nodes": optimizer.schedule.nodes,
                 "n_variables": optimizer.nlp.n_x,
@@ -108,23 +116,35 @@ def main() -> None:
                 "evaluation_success": all(r["evaluation_success"] for r in runs),
             }
             print(
-                f"[bench] {backend} x{scale:g}: {row['nodes']} nodes, "
+                f"[bench] {config} x{scale:g}: {row['nodes']} nodes, "
                 f"{row['iterations_median']:g} iterations, {row['solve_time_median_s']:.1f} s, "
                 f"checks {'pass' if row['evaluation_success'] else 'FAIL'}",
                 flush=True,
             )
             rows.append(row)
-    growth = {b: _growth([r for r in rows if r["backend"] == b]) for b in args.backends}
-    write_json_atomic(
-        args.out,
-        {
-            "scenario": "tiny",
-            "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
-            "repeats": args.repeats,
-            "growth_exponent": growth,
-            "results": rows,
-        },
-    )
+    growth = {c: _growth([r for r in rows if r["config"] == c]) for c in args.configs}
+    out = {
+        "scenario": "tiny",
+        "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+        "repeats": args.repeats,
+        "growth_exponent": growth,
+        "results": rows,
+    }
+    if args.spral_iterations:
+        solver = dataclasses.replace(
+            cfg.solver, print_level=0, backend="ipopt_spral", max_iterations=args.spral_iterations
+        )
+        optimizer = build_optimizer(inputs, dataclasses.replace(cfg, solver=solver))
+        traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
+        out["spral_probe"] = {
+            "nodes": optimizer.schedule.nodes,
+            "hessian": solver.hessian,
+            "iterations": traj.iterations,
+            "status": traj.status,
+            "seconds_per_iteration": traj.solve_time_s / max(traj.iterations, 1),
+        }
+        print(f"[bench] spral probe: {out['spral_probe']}", flush=True)
+    write_json_atomic(args.out, out)
 
 
 if __name__ == "__main__":
