@@ -132,9 +132,7 @@ def stage_derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     grad = ca.densify(ca.gradient(cost, zz))
     jac_r = ca.jacobian(residuals, zz)
     curvature = ca.dot(lam, g) if group.constraint_curvature else 0.0
-    hess = ca.triu(
-        ca.hessian(sigma * smooth + curvature, zz)[0] + 2.0 * sigma * (jac_r.T @ jac_r)
-    )
+    hess = ca.triu(ca.hessian(sigma * smooth + curvature, zz)[0] + 2.0 * sigma * (jac_r.T @ jac_r))
     name = fn.name()
     return (
         ca.Function(f"{name}_val", args, [g, cost]),

@@ -430,9 +430,7 @@ class TrajectoryOptimizer:
         for k in range(n - 1):
             keys.setdefault((self.modes[k], self.modes[k + 1], k == n - 2), []).append(k)
         curvature = solver.hessian == "exact"
-        groups = [
-            builder.group(*key, np.array(stages), curvature) for key, stages in keys.items()
-        ]
+        groups = [builder.group(*key, np.array(stages), curvature) for key, stages in keys.items()]
         groups.append(builder.kinematics_group(np.arange(n), curvature))
         self_collision = builder.self_collision_group(np.arange(1, n))
         if self_collision is not None:
