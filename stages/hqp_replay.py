@@ -10,9 +10,10 @@ import sys
 
 import numpy as np
 
-from locoman.artifacts import read_npz, write_metrics
+from locoman.artifacts import read_npz, write_metrics, write_text_atomic
 from locoman.config import load_params
 from locoman.errors import ConfigError
+from locoman.hqp.figures import results_table
 from locoman.hqp.replay import ReplayTask, joint_limits, replay
 from locoman.hqp.report import replay_metrics, write_replay
 from locoman.kmp.demos import task_points
@@ -53,11 +54,12 @@ def main() -> None:
         )
         model = load_scene_model(scene)
         log = replay(model, home, task, h)
-        write_replay(out, name, log, model, h.dt)
+        write_replay(out, name, log, task, model, h.dt)
         metrics[name] = replay_metrics(
             log, task, joint_limits(model, h), h.dt, h.success_tolerance_m
         )
     write_metrics(out, metrics)
+    write_text_atomic(out / "results.md", results_table(metrics))
 
 
 if __name__ == "__main__":

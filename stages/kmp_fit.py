@@ -10,10 +10,11 @@ import sys
 
 import numpy as np
 
-from locoman.artifacts import read_npz, write_metrics, write_npz
+from locoman.artifacts import read_npz, write_figure, write_metrics, write_npz
 from locoman.artifacts.io import write_text_atomic
 from locoman.config import load_params
 from locoman.kmp.demos import Demos, task_points
+from locoman.kmp.figures import reference_figure
 from locoman.kmp.fit import fit_case, kmp_vs_gmr, predict_seconds, reference_of, via_points
 from locoman.kmp.io import DEMOS, GMR, REFERENCE
 from locoman.scene.io import load_objects, load_plan
@@ -37,7 +38,8 @@ def main() -> None:
     write_npz(out / "gmr.npz", GMR, {"s": ref.s, "mean": ref.mean, "cov": ref.cov})
     metrics: dict = {"gmr_seconds": gmr_s, "cases": {}}
     for name, case_cfg in k.cases.items():
-        case = fit_case(ref, via_points(case_cfg.via_points, task), k, duration)
+        via = via_points(case_cfg.via_points, task, k.via_point_variance)
+        case = fit_case(ref, via, k, duration)
         write_npz(
             out / f"reference_{name}.npz",
             REFERENCE,
@@ -49,7 +51,14 @@ def main() -> None:
                 "base": case.base,
                 "via_time_s": np.array([v.s for v in case.via], dtype=float),
                 "via_mean": np.array([v.mean for v in case.via], dtype=float).reshape(-1, 9),
+                "via_cov": np.array([v.cov for v in case.via], dtype=float).reshape(-1, 9, 9),
+                "cov_time_s": case.cov_time_s,
+                "cov": case.cov,
             },
+        )
+        write_figure(
+            out / f"reference_{name}.png",
+            reference_figure(demos, ref, case, f"Paper B, learned reference ({name})"),
         )
         step = max(1, round(k.rate_hz / PLOT_RATE_HZ))
         rows = np.c_[case.time_s, case.outputs, case.base][::step]

@@ -62,3 +62,18 @@ def test_plan_must_name_known_objects(raw):
     bad["scenarios"]["tiny"]["plan"][1]["object"] = "crate"
     with pytest.raises(ConfigError, match=r"scenarios\.tiny\.plan\[1\]\.object"):
         validate(bad)
+
+
+@pytest.mark.parametrize("value", [float("nan"), -1.0, 0.0, float("inf")])
+def test_a_via_point_variance_must_be_finite_and_positive(raw, value):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["kmp"]["cases"]["replica"]["via_points"][0]["wrist_vel_variance"] = value
+    with pytest.raises(ConfigError, match=r"wrist_vel_variance"):
+        validate(bad)
+
+
+def test_a_large_via_point_variance_is_accepted(raw):
+    ok = yaml.safe_load(yaml.safe_dump(raw))
+    ok["kmp"]["cases"]["replica"]["via_points"][0]["wrist_vel_variance"] = 10.0
+    ok["kmp"]["via_point_variance"] = 1.0
+    assert validate(ok).kmp.cases["replica"].via_points[0].wrist_vel_variance == 10.0

@@ -3,6 +3,7 @@
 from locoman.artifacts.io import (
     read_json,
     read_npz,
+    write_figure,
     write_json,
     write_json_atomic,
     write_metrics,
@@ -17,6 +18,7 @@ __all__ = [
     "Field",
     "read_json",
     "read_npz",
+    "write_figure",
     "write_json",
     "write_json_atomic",
     "write_metrics",

@@ -192,3 +192,11 @@ def write_png(path: str | Path, rgb: np.ndarray) -> None:
     if not ok:
         raise OSError(f"PNG encoding failed for {path}")
     write_bytes_atomic(path, buf.tobytes())
+
+
+def write_figure(path: str | Path, fig: Any, dpi: int = 110) -> None:
+    """Write a matplotlib ``Figure`` as PNG, atomically and without the version stamp (so
+    the same data give the same bytes)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
+    write_bytes_atomic(path, buf.getvalue())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from omegaconf import MISSING
@@ -118,6 +119,10 @@ class ViaPointCfg:
         at: ``grasp`` or ``place``: the wrist position is the plan's grasp point (the
             object's position) or place point (the plan's target) raised by
             ``demos.grasp_height``; overrides ``wrist_pos``.
+        wrist_pos_variance: Variance of each constrained wrist position [m^2]; ``null``:
+            ``kmp.via_point_variance``. Tiny pins the output, large leaves it to the demos.
+        wrist_vel_variance: Same for the wrist velocity [(m/s)^2].
+        pelvis_variance: Same for the pelvis (x, y [m^2], yaw [rad^2]).
     """
 
     time_s: float = MISSING
@@ -125,10 +130,17 @@ class ViaPointCfg:
     wrist_vel: list[float] | None = None
     pelvis: list[float] | None = None
     at: str | None = None
+    wrist_pos_variance: float | None = None
+    wrist_vel_variance: float | None = None
+    pelvis_variance: float | None = None
 
     def check(self) -> list[tuple[str, str]]:
         errors = _vec("wrist_pos", self.wrist_pos, 3) + _vec("wrist_vel", self.wrist_vel, 3)
         errors += _vec("pelvis", self.pelvis, 3)
+        for name in ("wrist_pos_variance", "wrist_vel_variance", "pelvis_variance"):
+            value = getattr(self, name)
+            if value is not None and not 0.0 < value < math.inf:
+                errors.append((name, f"must be a finite variance > 0, got {value}"))
         if self.at not in (None, "grasp", "place"):
             errors.append(("at", f"must be grasp, place or null, got {self.at!r}"))
         if self.time_s < 0.0:
@@ -153,8 +165,12 @@ class KmpCfg:
         n_reference: Reference points {s_n, mu_n, Sigma_n} extracted by GMR over the task.
         regularization: KMP's lambda (paper: 10).
         kernel_width_s: Width ``l`` of the RBF kernel k(s, s') = exp(-(s - s')^2 / (2 l^2)) [s].
-        via_point_variance: Variance of every constrained output of a via point (units^2);
-            1e-8 or smaller makes the prediction pass through the point.
+        via_point_variance: Default variance of a via point's constrained outputs
+            (units^2); 1e-8 or smaller makes the prediction pass through the point.
+        via_point_time_tol_s: A via point this close to a reference point's input replaces
+            that point's constrained outputs; any other is inserted [s] (one control period).
+        covariance_regularization: lambda_c of the covariance prediction (KMP paper), which
+            scales it by N / lambda_c.
         rate_hz: Rate of the predicted reference the controller tracks [Hz] (paper: 1 kHz).
         pelvis_to_base_m: Sigma_R sits this far ahead of Sigma_B (paper: 0.3875 m); the
             learned pelvis maps to Sigma_R, the base command is in Sigma_B.
@@ -168,6 +184,8 @@ class KmpCfg:
     regularization: float = 10.0
     kernel_width_s: float = 1.0
     via_point_variance: float = 1e-10
+    via_point_time_tol_s: float = 1e-3
+    covariance_regularization: float = 260.0
     rate_hz: float = 1000.0
     pelvis_to_base_m: float = 0.3875
     cases: dict[str, KmpCaseCfg] = field(default_factory=dict)
@@ -180,8 +198,12 @@ class KmpCfg:
             errors.append(("regularization", f"must be > 0, got {self.regularization}"))
         if self.kernel_width_s <= 0.0:
             errors.append(("kernel_width_s", f"must be > 0 s, got {self.kernel_width_s}"))
-        if not 0.0 < self.via_point_variance < 1e-2:
-            errors.append(("via_point_variance", "must be in (0, 1e-2)"))
+        if not 0.0 < self.via_point_variance < math.inf:
+            errors.append(("via_point_variance", "must be a finite variance > 0"))
+        if not 0.0 <= self.via_point_time_tol_s < math.inf:
+            errors.append(("via_point_time_tol_s", "must be a finite time >= 0 s"))
+        if not 0.0 < self.covariance_regularization < math.inf:
+            errors.append(("covariance_regularization", "must be finite and > 0"))
         if not self.cases:
             errors.append(("cases", "define at least one case"))
         return errors

@@ -8,12 +8,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from locoman.artifacts import ArtifactSchema, Field, write_npz
+from locoman.artifacts import ArtifactSchema, Field, write_figure, write_npz
 from locoman.artifacts.io import write_text_atomic
 from locoman.artifacts.mcap_io import write_mcap
+from locoman.hqp.figures import ReplaySeries, replay_figure
 from locoman.hqp.limits import JointLimits
 from locoman.hqp.replay import ReplayLog, ReplayTask
 from locoman.scene.frames import body_frames
+from locoman.scene.mobile_manipulator import ARM_BASE_BODY
 
 #: Rate of the MCAP and the plot tables [Hz]; the npz keeps every control step.
 EXPORT_RATE_HZ = 100.0
@@ -21,10 +23,12 @@ EXPORT_RATE_HZ = 100.0
 UPRIGHT_TOL_RAD = 0.2
 #: ... and as lifted when it rose this far above its start [m].
 LIFT_MIN_M = 0.01
+#: The paper's figure of each case.
+FIGURES = {"replica": "Fig. 5", "generalisation": "Fig. 6"}
 
 REPLAY = ArtifactSchema(
     "hqp.replay",
-    1,
+    2,
     "hqp_replay",
     (
         Field("time_s", "float64", ("T",), "s"),
@@ -42,7 +46,6 @@ REPLAY = ArtifactSchema(
         Field("gripper_closed", "float64", ("T",), "-", "1 while the gripper is closed"),
         Field("obj_pos", "float64", ("T", 3), "m", "carried object's base"),
         Field("level1_residual", "float64", ("T",), "mixed", "||J qdot* - b_1||"),
-        Field("hqp_step_s", "float64", ("T",), "s", "Jacobian + tasks + QP time"),
     ),
 )
 
@@ -98,8 +101,21 @@ def _csv(path: Path, header: str, rows: np.ndarray) -> None:
     write_text_atomic(path, header + "\n" + body + "\n")
 
 
-def write_replay(out: Path, name: str, log: ReplayLog, model: mujoco.MjModel, dt: float) -> None:
-    """``replay_<name>.npz`` (every step), ``replay_<name>.mcap`` and ``plots/<name>_*.csv``."""
+def _in_frame(pos: np.ndarray, frame_pos: np.ndarray, frame_wxyz: np.ndarray) -> np.ndarray:
+    """World points (T, 3) expressed in moving frames (T, 3) + (T, 4) (w, x, y, z) [m]."""
+    rot = np.empty((len(pos), 9))
+    for k, q in enumerate(frame_wxyz):
+        mujoco.mju_quat2Mat(rot[k], q)
+    return np.einsum("tji,tj->ti", rot.reshape(-1, 3, 3), pos - frame_pos)
+
+
+def write_replay(
+    out: Path, name: str, log: ReplayLog, task: ReplayTask, model: mujoco.MjModel, dt: float
+) -> None:
+    """``replay_<name>.npz`` (every step), ``replay_<name>.mcap``, ``plots/<name>_*.csv`` and
+    the paper's figure ``fig_<name>.png``."""
+    # The step times stay out: a wall clock would change the artifact on every run; their
+    # median and p99 go to timing.json.
     write_npz(
         out / f"replay_{name}.npz",
         REPLAY,
@@ -108,10 +124,12 @@ def write_replay(out: Path, name: str, log: ReplayLog, model: mujoco.MjModel, dt
     step = max(1, round(1.0 / (EXPORT_RATE_HZ * dt)))
     sl = slice(None, None, step)
     t = log.time_s[sl]
+    frames = body_frames(model, log.qpos[sl])
+    ee_arm = _in_frame(log.ee_pos[sl], *frames[ARM_BASE_BODY])
     write_mcap(
         out / f"replay_{name}.mcap",
         t,
-        body_frames(model, log.qpos[sl]),
+        frames,
         {
             "/ee": {
                 "desired": log.ee_pos_desired[sl],
@@ -150,3 +168,19 @@ def write_replay(out: Path, name: str, log: ReplayLog, model: mujoco.MjModel, dt
         "x_actual,y_actual,yaw_actual",
         np.c_[t, log.base_learned[sl], log.base_optimal[sl], log.base_actual[sl]],
     )
+    _csv(plots / f"{name}_ee_arm.csv", "time_s,x_r,y_r,z_r", np.c_[t, ee_arm])
+    series = ReplaySeries(
+        t,
+        log.ee_pos_desired[sl],
+        log.ee_pos[sl],
+        ee_arm,
+        log.base_learned[sl],
+        log.base_optimal[sl],
+        log.base_actual[sl],
+        log.ee_vel_desired[sl],
+        log.ee_vel[sl],
+        task.grasp_time_s,
+        task.grasp_velocity,
+    )
+    figure = FIGURES.get(name, f"case {name}")
+    write_figure(out / f"fig_{name}.png", replay_figure(series, f"Paper B, {figure}: {name}"))

@@ -10,9 +10,18 @@ import numpy as np
 from locoman.config.skill_transfer import KmpCfg, ViaPointCfg
 from locoman.kmp.demos import Demos, TaskPoints
 from locoman.kmp.gmr import Reference, fit_gmm, gmr
-from locoman.kmp.kmp import N_OUT, ViaPoint, insert_via_points, kmp_fit, kmp_predict
+from locoman.kmp.kmp import (
+    N_OUT,
+    ViaPoint,
+    insert_via_points,
+    kmp_covariance_fit,
+    kmp_fit,
+    kmp_predict,
+    kmp_predict_covariance,
+)
 
 PREDICT_REPEATS = 5
+COV_RATE_HZ = 10.0  # the covariance is drawn, not tracked: the reference's own rate
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,6 +36,8 @@ class CaseResult:
         via_errors: Largest |prediction - via point| per output group: position [m],
             velocity [m/s], pelvis (mixed).
         fit_s: Time to insert the via points and solve the KMP [s].
+        cov_time_s: (C,) inputs of the covariance prediction, at ``COV_RATE_HZ`` [s].
+        cov: (C, 9, 9) KMP's predicted covariance there (units^2).
     """
 
     time_s: np.ndarray
@@ -35,6 +46,8 @@ class CaseResult:
     via: list[ViaPoint]
     via_errors: dict[str, float]
     fit_s: float
+    cov_time_s: np.ndarray
+    cov: np.ndarray
 
 
 def pelvis_to_base(pelvis: np.ndarray, offset: float) -> np.ndarray:
@@ -43,8 +56,11 @@ def pelvis_to_base(pelvis: np.ndarray, offset: float) -> np.ndarray:
     return np.c_[pelvis[:, 0] - offset * np.cos(yaw), pelvis[:, 1] - offset * np.sin(yaw), yaw]
 
 
-def via_points(points: list[ViaPointCfg], task: TaskPoints) -> list[ViaPoint]:
-    """Config via points as :class:`ViaPoint`, ``at`` resolved to the scene's task points."""
+def via_points(
+    points: list[ViaPointCfg], task: TaskPoints, default_variance: float
+) -> list[ViaPoint]:
+    """Config via points as :class:`ViaPoint`, ``at`` resolved to the scene's task points; an
+    output group without its own variance gets ``default_variance``."""
     out = []
     for p in points:
         mean = np.full(N_OUT, np.nan)
@@ -55,7 +71,14 @@ def via_points(points: list[ViaPointCfg], task: TaskPoints) -> list[ViaPoint]:
             mean[3:6] = p.wrist_vel
         if p.pelvis is not None:
             mean[6:9] = p.pelvis
-        out.append(ViaPoint(float(p.time_s), mean))
+        variance = np.repeat(
+            [
+                default_variance if v is None else v
+                for v in (p.wrist_pos_variance, p.wrist_vel_variance, p.pelvis_variance)
+            ],
+            3,
+        )
+        out.append(ViaPoint.of(float(p.time_s), mean, variance))
     return out
 
 
@@ -77,10 +100,11 @@ def reference_of(demos: Demos, cfg: KmpCfg, seed: int) -> tuple[Reference, float
 def fit_case(ref: Reference, via: list[ViaPoint], cfg: KmpCfg, duration_s: float) -> CaseResult:
     """Insert the via points, fit the KMP and predict at ``cfg.rate_hz`` over the task."""
     tic = time.perf_counter()
-    model = kmp_fit(
-        insert_via_points(ref, via, cfg.via_point_variance), cfg.regularization, cfg.kernel_width_s
-    )
+    adapted = insert_via_points(ref, via, cfg.via_point_time_tol_s)
+    model = kmp_fit(adapted, cfg.regularization, cfg.kernel_width_s)
     fit_s = time.perf_counter() - tic
+    cov_model = kmp_covariance_fit(adapted, cfg.covariance_regularization, cfg.kernel_width_s)
+    cov_time = np.linspace(0.0, duration_s, round(duration_s * COV_RATE_HZ) + 1)
     t = np.linspace(0.0, duration_s, round(duration_s * cfg.rate_hz) + 1)
     out = kmp_predict(model, t)
     errors = {"position_m": 0.0, "velocity_mps": 0.0, "pelvis": 0.0}
@@ -89,7 +113,16 @@ def fit_case(ref: Reference, via: list[ViaPoint], cfg: KmpCfg, duration_s: float
         for key, sl in zip(errors, (slice(0, 3), slice(3, 6), slice(6, 9)), strict=True):
             if np.any(~np.isnan(v.mean[sl])):
                 errors[key] = max(errors[key], float(np.nanmax(miss[sl])))
-    return CaseResult(t, out, pelvis_to_base(out[:, 6:9], cfg.pelvis_to_base_m), via, errors, fit_s)
+    return CaseResult(
+        t,
+        out,
+        pelvis_to_base(out[:, 6:9], cfg.pelvis_to_base_m),
+        via,
+        errors,
+        fit_s,
+        cov_time,
+        kmp_predict_covariance(cov_model, cov_time),
+    )
 
 
 def predict_seconds(ref: Reference, cfg: KmpCfg, duration_s: float) -> float:

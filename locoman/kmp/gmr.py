@@ -30,7 +30,8 @@ class Reference:
 
     Attributes:
         s: (N,) inputs (time [s]).
-        mean: (N, O) means of the outputs.
+        mean: (N, O) means of the outputs; NaN marks an output not observed at that input
+            (a via point's free output), which KMP leaves out.
         cov: (N, O, O) covariances of the outputs.
     """
 

@@ -29,7 +29,7 @@ GMR = ArtifactSchema(
 )
 REFERENCE = ArtifactSchema(
     "kmp.reference",
-    1,
+    2,
     "kmp_fit",
     (
         Field("time_s", "float64", ("T",), "s", "prediction times (kmp.rate_hz)"),
@@ -39,5 +39,8 @@ REFERENCE = ArtifactSchema(
         Field("base", "float64", ("T", 3), "mixed", "q_b,d: base frame Sigma_B x, y, yaw"),
         Field("via_time_s", "float64", ("V",), "s", "via point inputs"),
         Field("via_mean", "float64", ("V", 9), "mixed", "via point outputs; NaN = free"),
+        Field("via_cov", "float64", ("V", 9, 9), "mixed", "via point covariances"),
+        Field("cov_time_s", "float64", ("C",), "s", "inputs of the covariance prediction"),
+        Field("cov", "float64", ("C", 9, 9), "mixed", "KMP's predicted covariance"),
     ),
 )

@@ -35,6 +35,7 @@ BASE_JOINTS = ("base_x", "base_y", "base_yaw")
 ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
 FINGER_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
 EE_SITE = "ee_site"
+ARM_BASE_BODY = "panda_link0"  # Sigma_R, the arm base frame
 #: A comfortable arm posture [rad] (Franka's "ready" pose).
 ARM_READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 GRIPPER_OPEN = 0.04  # [m] finger joint opening (each finger)
