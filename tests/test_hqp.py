@@ -8,8 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from locoman.hqp.impedance import joint_impedance_torque
-from locoman.hqp.limits import JointLimits, velocity_box
-from locoman.hqp.solver import WholeBodyHqp, solve_hierarchy, weighted_objective
+from locoman.hqp.limits import JointLimits, VelocityBox
+from locoman.hqp.solver import (
+    HierarchySolver,
+    WholeBodyHqp,
+    solve_hierarchy,
+    weighted_objective,
+)
 
 LIMITS = JointLimits(
     arm_min=np.full(7, -2.5),
@@ -25,7 +30,7 @@ def random_problem(seed: int):
     b1 = rng.normal(scale=0.3, size=6)
     q_arm = rng.uniform(-2.6, 2.6, 7)
     prev = np.clip(rng.normal(scale=0.5, size=10), -LIMITS.velocity_max, LIMITS.velocity_max)
-    lo, hi = velocity_box(LIMITS, q_arm, prev, 1e-3)
+    lo, hi = VelocityBox(LIMITS, 1e-3)(np.r_[np.zeros(3), q_arm], prev)
     level2 = (np.eye(10), rng.normal(size=10))
     return jac, b1, lo, hi, level2, q_arm, prev
 
@@ -114,3 +119,26 @@ def test_measured_velocity_option_reaches_the_task(feedback):
     )
     expected = 4.0 * np.ones(3) - (0.1 if feedback else 0.0)
     np.testing.assert_allclose(levels[0][1][:3], expected)
+
+
+def test_the_reused_qp_workspace_gives_the_one_shot_solution():
+    """HierarchySolver keeps DAQP's workspace between solves: problem after problem, it
+    returns what solve_hierarchy (a fresh set-up each time) returns."""
+    weights = np.r_[np.ones(3), np.full(7, 0.05)]
+    qp = HierarchySolver(np.diag(weights), 6)
+    for seed in range(30):
+        jac, b1, lo, hi, level2, *_ = random_problem(seed)
+        qp.lower[:], qp.upper[:] = lo, hi
+        f = weighted_objective(level2, weights)[1]
+        x = qp.solve((jac, b1), f)
+        expected = solve_hierarchy([(jac, b1)], lo, hi, weighted_objective(level2, weights))
+        np.testing.assert_allclose(x, expected, atol=1e-9)
+        assert np.all(x >= lo) and np.all(x <= hi)
+
+
+def test_the_velocity_box_writes_into_given_buffers():
+    _, _, lo, hi, _, q_arm, prev = random_problem(7)
+    out = (np.full(10, np.nan), np.full(10, np.nan))
+    VelocityBox(LIMITS, 1e-3)(np.r_[np.zeros(3), q_arm], prev, out=out)
+    np.testing.assert_array_equal(out[0], lo)
+    np.testing.assert_array_equal(out[1], hi)

@@ -29,10 +29,9 @@ class JointLimits:
         return 0.5 * (self.arm_min + self.arm_max)
 
 
-def velocity_box(
-    limits: JointLimits, q_arm_star: np.ndarray, qdot_star_prev: np.ndarray, dt: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper bounds (10,) on the joint velocity qdot of the next step.
+class VelocityBox:
+    """The velocity box of eq. (7)-(9) for one robot and control period, its constant factors
+    computed once (it is evaluated at 1 kHz).
 
     Intersects (8) |qdot| <= qdot_max, (9) |qdot - qdot*| <= qddot_max dt and, for the arm
     only (the base's position is unbounded), (7) q_a,min <= q_a* + qdot_a dt <= q_a,max.
@@ -42,14 +41,38 @@ def velocity_box(
 
     Args:
         limits: The robot's limits.
-        q_arm_star: (7,) integrated optimal arm position q_a* [rad].
-        qdot_star_prev: (10,) optimal velocity of the previous step qdot*.
         dt: Control period [s].
     """
-    lo = np.maximum(-limits.velocity_max, qdot_star_prev - limits.acceleration_max * dt)
-    hi = np.minimum(limits.velocity_max, qdot_star_prev + limits.acceleration_max * dt)
-    lo = np.minimum(lo, hi)
-    arm = slice(3, 10)
-    lo[arm] = np.clip((limits.arm_min - q_arm_star) / dt, lo[arm], hi[arm])
-    hi[arm] = np.clip((limits.arm_max - q_arm_star) / dt, lo[arm], hi[arm])
-    return lo, hi
+
+    def __init__(self, limits: JointLimits, dt: float) -> None:
+        self._vmax = limits.velocity_max
+        self._neg_vmax = -limits.velocity_max
+        self._step = limits.acceleration_max * dt
+        # (7) over all 10 joints: the base's position limits are -inf, +inf, for which the
+        # clip below leaves the (8)-(9) box as it is.
+        inf = np.full(3, np.inf)
+        self._position_limits = np.stack([np.r_[-inf, limits.arm_min], np.r_[inf, limits.arm_max]])
+        self._dt = dt
+
+    def __call__(
+        self,
+        q_star: np.ndarray,
+        qdot_star_prev: np.ndarray,
+        out: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds (10,) on the next step's joint velocity qdot.
+
+        Args:
+            q_star: (10,) integrated optimal configuration q* (the base's entries unused).
+            qdot_star_prev: (10,) optimal velocity of the previous step qdot*.
+            out: Arrays (10,) to write the bounds into, e.g. a QP's bound buffers.
+        """
+        lo, hi = (np.empty(10), np.empty(10)) if out is None else out
+        np.maximum(self._neg_vmax, np.subtract(qdot_star_prev, self._step, out=lo), out=lo)
+        np.minimum(self._vmax, np.add(qdot_star_prev, self._step, out=hi), out=hi)
+        np.minimum(lo, hi, out=lo)
+        # min(max(x, a), b) is np.clip(x, a, b) without its overhead.
+        pos_lo, pos_hi = (self._position_limits - q_star) / self._dt
+        np.minimum(np.maximum(pos_lo, lo, out=lo), hi, out=lo)
+        np.minimum(np.maximum(pos_hi, lo, out=pos_hi), hi, out=hi)
+        return lo, hi

@@ -10,13 +10,17 @@ physics lets them.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import gc
 import time
+from collections.abc import Iterator
 
 import mujoco
 import numpy as np
 
 from locoman.config.skill_transfer import HqpCfg
+from locoman.errors import ModelError
 from locoman.hqp.impedance import GravityModel, joint_impedance_torque
 from locoman.hqp.limits import JointLimits
 from locoman.hqp.orientation import grasp_orientation
@@ -97,6 +101,33 @@ def joint_limits(model: mujoco.MjModel, cfg: HqpCfg) -> JointLimits:
     )
 
 
+@contextlib.contextmanager
+def _gc_paused() -> Iterator[None]:
+    """Python's cyclic garbage collector paused: a collection inside the 1 kHz loop stalls a
+    step; the loop makes no reference cycles, so reference counting still frees everything."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _consecutive(index: np.ndarray) -> slice:
+    """``index`` as a slice (a view, not a copy, of the Jacobian's columns).
+
+    Raises:
+        ModelError: If the indices are not consecutive.
+    """
+    if not np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        raise ModelError(
+            f"the mobile manipulator's joints must be consecutive dofs, got {index.tolist()}; "
+            "build it with locoman.scene.mobile_manipulator"
+        )
+    return slice(int(index[0]), int(index[0]) + len(index))
+
+
 def replay(
     model: mujoco.MjModel, home_qpos: np.ndarray, task: ReplayTask, cfg: HqpCfg
 ) -> ReplayLog:
@@ -143,53 +174,60 @@ def replay(
     log |= {"qpos": np.zeros((n, model.nq))}
     log |= {name: np.zeros(n) for name in ("gripper_closed", "level1_residual", "hqp_step_s")}
     jac = np.zeros((6, model.nv))
-    xdot_d = np.zeros(6)
-    start = time.perf_counter()
-    for k in range(n):
-        t = task.time_s[k]
-        mujoco.mj_step1(model, data)
-        tic = time.perf_counter()
-        mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
-        j = jac[:, dadr]
-        x_a = (data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy())
-        x_d = (task.ee_pos[k], rotation)
-        xdot_d[:3] = task.ee_vel[k]
-        qvel = data.qvel[dadr]
-        xdot_a = j @ qvel
-        qdot = hqp.step(j, x_d, xdot_d, x_a, task.base[k], xdot_a)
-        log["hqp_step_s"][k] = time.perf_counter() - tic
+    xdot_desired = np.c_[task.ee_vel, np.zeros((n, 3))]  # no angular velocity
+    # Views into MjData, made once: the loop below runs at 1 kHz.
+    site_pos, site_rot = data.site_xpos[site], data.site_xmat[site].reshape(3, 3)
+    cols = _consecutive(dadr)
+    qvel_all = data.qvel
+    feedback = cfg.measured_velocity_feedback
+    with _gc_paused():
+        start = time.perf_counter()
+        for k in range(n):
+            t = task.time_s[k]
+            mujoco.mj_step1(model, data)
+            tic = time.perf_counter()
+            mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
+            j = np.ascontiguousarray(jac[:, cols])
+            x_a = (site_pos, site_rot)
+            x_d = (task.ee_pos[k], rotation)
+            qvel = qvel_all[cols]
+            xdot_a = j @ qvel if feedback else None
+            qdot = hqp.step(j, x_d, xdot_desired[k], x_a, task.base[k], xdot_a)
+            log["hqp_step_s"][k] = time.perf_counter() - tic
+            if xdot_a is None:  # measured for the log only, outside the controller's step
+                xdot_a = j @ qvel
+            log["ee_pos"][k] = site_pos
+            log["ee_rot_error"][k] = rotation[:, 2] - site_rot[:, 2]
 
-        tau = joint_impedance_torque(
-            hqp.q_star[3:],
-            qdot[3:],
-            data.qpos[qadr[3:]],
-            qvel[3:],
-            cfg.joint_stiffness,
-            cfg.joint_damping,
-            gravity(data.qpos)[arm_dadr],
-        )
-        data.ctrl[base_act] = qdot[:3]
-        data.ctrl[arm_act] = tau
-        closed = task.grasp_time_s <= t < task.release_time_s
-        data.ctrl[grip_act] = 0.0 if closed else GRIPPER_OPEN
-        mujoco.mj_step2(model, data)
+            tau = joint_impedance_torque(
+                hqp.q_star[3:],
+                qdot[3:],
+                data.qpos[qadr[3:]],
+                qvel[3:],
+                cfg.joint_stiffness,
+                cfg.joint_damping,
+                gravity(data.qpos)[arm_dadr],
+            )
+            data.ctrl[base_act] = qdot[:3]
+            data.ctrl[arm_act] = tau
+            closed = task.grasp_time_s <= t < task.release_time_s
+            data.ctrl[grip_act] = 0.0 if closed else GRIPPER_OPEN
+            mujoco.mj_step2(model, data)
 
-        log["ee_pos"][k] = x_a[0]
-        log["ee_vel"][k] = xdot_a[:3]
-        log["ee_rot_error"][k] = x_d[1][:, 2] - x_a[1][:, 2]
-        log["base_optimal"][k] = hqp.q_star[:3]
-        log["base_actual"][k] = data.qpos[qadr[:3]]
-        log["q_star"][k] = hqp.q_star
-        log["qdot_star"][k] = qdot
-        log["q"][k] = data.qpos[qadr]
-        log["torque"][k] = data.actuator_force[arm_act]
-        log["gripper_closed"][k] = float(closed)
-        log["obj_pos"][k] = data.xpos[obj_body]
-        log["obj_quat_wxyz"][k] = data.xquat[obj_body]
-        log["qpos"][k] = data.qpos
-        level1 = hqp.last_level1
-        log["level1_residual"][k] = float(np.linalg.norm(level1[0] @ qdot - level1[1]))
-    wall = time.perf_counter() - start
+            log["ee_vel"][k] = xdot_a[:3]
+            log["base_optimal"][k] = hqp.q_star[:3]
+            log["base_actual"][k] = data.qpos[qadr[:3]]
+            log["q_star"][k] = hqp.q_star
+            log["qdot_star"][k] = qdot
+            log["q"][k] = data.qpos[qadr]
+            log["torque"][k] = data.actuator_force[arm_act]
+            log["gripper_closed"][k] = float(closed)
+            log["obj_pos"][k] = data.xpos[obj_body]
+            log["obj_quat_wxyz"][k] = data.xquat[obj_body]
+            log["qpos"][k] = data.qpos
+            level1 = hqp.last_level1
+            log["level1_residual"][k] = float(np.linalg.norm(level1[0] @ qdot - level1[1]))
+        wall = time.perf_counter() - start
     return ReplayLog(
         time_s=task.time_s,
         ee_pos_desired=task.ee_pos,

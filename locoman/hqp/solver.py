@@ -14,8 +14,8 @@ import daqp
 import numpy as np
 
 from locoman.errors import SolverError
-from locoman.hqp.limits import JointLimits, velocity_box
-from locoman.hqp.tasks import arm_mid_range_task, base_pose_task, clik_task
+from locoman.hqp.limits import JointLimits, VelocityBox
+from locoman.hqp.tasks import arm_mid_range_task, base_pose_task, clik_task, wrap_angle
 
 Task = tuple[np.ndarray, np.ndarray]
 
@@ -72,6 +72,59 @@ def solve_hierarchy(
     return np.clip(x, lower, upper)
 
 
+class HierarchySolver:
+    """:func:`solve_hierarchy` for one task level under bounds with a weighted objective of
+    fixed Hessian, DAQP's workspace allocated once (``daqp.Model``): the 1 kHz loop solves
+    the same structure with new numbers, and the set-up is most of a solve's time.
+
+    Fill :attr:`lower` and :attr:`upper` (views into the QP's own bound vectors, so nothing
+    is copied), then call :meth:`solve`.
+
+    Args:
+        hessian: (n, n) positive definite H of the objective 1/2 x^T H x + f^T x.
+        rows: Rows m of the task level.
+
+    Attributes:
+        lower: (n,) lower bounds on x.
+        upper: (n,) upper bounds on x.
+    """
+
+    def __init__(self, hessian: np.ndarray, rows: int) -> None:
+        n = len(hessian)
+        self._hessian = np.ascontiguousarray(hessian, dtype=float)
+        self._n = n
+        self._upper = np.zeros(n + rows)
+        self._lower = np.zeros(n + rows)
+        self.lower, self.upper = self._lower[:n], self._upper[:n]
+        self._sense = np.zeros(n + rows, dtype=np.int32)
+        self._breaks = np.array([n, n + rows], dtype=np.int32)
+        self._model: daqp.Model | None = None
+
+    def solve(self, level: Task, f: np.ndarray) -> np.ndarray:
+        """x (n,) of the bounds, then ``level`` (A (m, n), b (m,)), then the objective's
+        gradient f (n,).
+
+        Raises:
+            SolverError: If DAQP fails.
+        """
+        a, b = level
+        n = self._n
+        self._upper[n:] = b  # the level is an equality: b <= A x <= b
+        self._lower[n:] = b
+        a = np.ascontiguousarray(a, dtype=float)
+        if self._model is None:
+            self._model = daqp.Model()
+            self._model.setup(
+                self._hessian, f, a, self._upper, self._lower, self._sense, self._breaks
+            )
+        else:
+            self._model.update(f=f, A=a, bupper=self._upper, blower=self._lower)
+        x, _, flag, _ = self._model.solve()
+        if flag < 0:
+            raise SolverError(f"DAQP failed on the hierarchical QP (exit flag {flag})")
+        return np.minimum(np.maximum(x, self.lower, out=x), self.upper, out=x)
+
+
 class WholeBodyHqp:
     """The two-level stack of the mobile manipulator, with its integrated optimal state.
 
@@ -103,7 +156,11 @@ class WholeBodyHqp:
         self.measured_velocity_feedback = measured_velocity_feedback
         self.weights = np.r_[np.ones(3), np.full(7, arm_mid_range_weight)]
         # Level 2's A stacks H_b and H_a: the identity, so its objective Hessian is W.
-        self._hessian = np.diag(self.weights)
+        self._qp = HierarchySolver(np.diag(self.weights), 6)
+        # Level 2's goal (q_b,d, q_a,mid); f = -W g (goal - q*) is its objective's gradient.
+        self._goal = np.r_[np.zeros(3), limits.arm_mid]
+        self._f_scale = -self.weights * level2_gain
+        self._box = VelocityBox(limits, dt)
         self.q_star = np.asarray(q0, dtype=float).copy()
         self.qdot_star = np.zeros(10)
         self.last_level1: Task | None = None
@@ -131,10 +188,6 @@ class WholeBodyHqp:
         arm = arm_mid_range_task(self.limits.arm_mid, self.q_star[3:], self.level2_gain)
         return level1, (np.vstack([base[0], arm[0]]), np.concatenate([base[1], arm[1]]))
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """The velocity box of the next step, eq. (7)-(9)."""
-        return velocity_box(self.limits, self.q_star[3:], self.qdot_star, self.dt)
-
     def step(
         self,
         jacobian: np.ndarray,
@@ -145,11 +198,23 @@ class WholeBodyHqp:
         xdot_actual: np.ndarray | None = None,
     ) -> np.ndarray:
         """Solve the stack, integrate q* and return qdot* (10,)."""
-        level1, (_, target) = self.levels(
-            jacobian, x_desired, xdot_desired, x_actual, q_base_desired, xdot_actual
+        level1 = clik_task(
+            jacobian,
+            x_desired,
+            xdot_desired,
+            x_actual,
+            self.kp,
+            self.kv,
+            xdot_actual if self.measured_velocity_feedback else None,
         )
-        objective = (self._hessian, -self.weights * target)
-        qdot = solve_hierarchy([level1], *self.bounds(), objective=objective)
+        # Level 2's rows are the identity (H_b, H_a stacked), so only its target
+        # g (goal - q*) is needed, as f = -W target (see weighted_objective).
+        self._goal[:3] = q_base_desired
+        f = self._goal - self.q_star
+        f[2] = wrap_angle(float(f[2]))
+        f *= self._f_scale
+        self._box(self.q_star, self.qdot_star, out=(self._qp.lower, self._qp.upper))
+        qdot = self._qp.solve(level1, f)
         self.last_level1 = level1
         self.qdot_star = qdot
         self.q_star = self.q_star + qdot * self.dt

@@ -15,6 +15,8 @@ dynamics edot = -K_p e; the literal law is kept as an option for comparison.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from locoman.scene.mobile_manipulator import rotation_error
@@ -44,9 +46,13 @@ def clik_task(
         (A, b) with A = J and b the commanded end-effector velocity.
     """
     (p_d, r_d), (p_a, r_a) = x_desired, x_actual
-    error = np.concatenate([p_d - p_a, rotation_error(r_d, r_a)])
+    b = np.empty(6)
+    np.subtract(p_d, p_a, out=b[:3])
+    rotation_error(r_d, r_a, out=b[3:])
+    b *= kp
     velocity = xdot_desired if xdot_actual is None else xdot_desired - xdot_actual
-    return jacobian, kv * velocity + kp * error
+    b += kv * velocity
+    return jacobian, b
 
 
 _H_B = np.eye(3, 10)
@@ -62,7 +68,7 @@ def base_pose_task(
     a smaller g spreads the correction over 1 / g seconds.
     """
     err = q_base_desired - q_base_star
-    err[2] = (err[2] + np.pi) % (2.0 * np.pi) - np.pi
+    err[2] = wrap_angle(float(err[2]))
     return _H_B, gain * err
 
 
@@ -71,3 +77,8 @@ def arm_mid_range_task(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Second term of eq. (6) divided by dt: H_a qdot = g (q_a,mid - q_a*), H_a the arm (7)."""
     return _H_A, gain * (q_arm_mid - q_arm_star)
+
+
+def wrap_angle(angle: float) -> float:
+    """``angle`` in [-pi, pi) [rad]."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi

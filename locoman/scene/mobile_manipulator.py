@@ -207,10 +207,16 @@ def start_qpos(
     return data.qpos.copy()
 
 
-def rotation_error(r_desired: np.ndarray, r_actual: np.ndarray) -> np.ndarray:
-    """Axis-angle vector [rad] of R_d R_a^T (world frame): the rotation taking R_a to R_d."""
+def rotation_error(
+    r_desired: np.ndarray, r_actual: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Axis-angle vector [rad] of R_d R_a^T (world frame): the rotation taking R_a to R_d;
+    written into ``out`` (3,) when given."""
+    # MuJoCo's own products: this runs in the 1 kHz loop, where numpy's 3x3 @ costs 1 us.
+    rel = np.empty((3, 3))
+    mujoco.mju_mulMatMatT(rel, r_desired, r_actual)
     q = np.empty(4)
-    mujoco.mju_mat2Quat(q, (r_desired @ r_actual.T).ravel())
-    err = np.empty(3)
+    mujoco.mju_mat2Quat(q, rel.ravel())
+    err = np.empty(3) if out is None else out
     mujoco.mju_quat2Vel(err, q, 1.0)
     return err
