@@ -165,6 +165,18 @@ class WholeBodyHqp:
         self.qdot_star = np.zeros(10)
         self.last_level1: Task | None = None
 
+    def _level1(
+        self,
+        jacobian: np.ndarray,
+        x_desired: tuple[np.ndarray, np.ndarray],
+        xdot_desired: np.ndarray,
+        x_actual: tuple[np.ndarray, np.ndarray],
+        xdot_actual: np.ndarray | None,
+    ) -> Task:
+        """Level 1, eq. (4), with the measured velocity only under the literal law."""
+        feedback = xdot_actual if self.measured_velocity_feedback else None
+        return clik_task(jacobian, x_desired, xdot_desired, x_actual, self.kp, self.kv, feedback)
+
     def levels(
         self,
         jacobian: np.ndarray,
@@ -175,15 +187,7 @@ class WholeBodyHqp:
         xdot_actual: np.ndarray | None = None,
     ) -> tuple[Task, Task]:
         """Level 1 (eq. (4)) and level 2 (eq. (6)) for the current state."""
-        level1 = clik_task(
-            jacobian,
-            x_desired,
-            xdot_desired,
-            x_actual,
-            self.kp,
-            self.kv,
-            xdot_actual if self.measured_velocity_feedback else None,
-        )
+        level1 = self._level1(jacobian, x_desired, xdot_desired, x_actual, xdot_actual)
         base = base_pose_task(q_base_desired, self.q_star[:3], self.level2_gain)
         arm = arm_mid_range_task(self.limits.arm_mid, self.q_star[3:], self.level2_gain)
         return level1, (np.vstack([base[0], arm[0]]), np.concatenate([base[1], arm[1]]))
@@ -198,15 +202,7 @@ class WholeBodyHqp:
         xdot_actual: np.ndarray | None = None,
     ) -> np.ndarray:
         """Solve the stack, integrate q* and return qdot* (10,)."""
-        level1 = clik_task(
-            jacobian,
-            x_desired,
-            xdot_desired,
-            x_actual,
-            self.kp,
-            self.kv,
-            xdot_actual if self.measured_velocity_feedback else None,
-        )
+        level1 = self._level1(jacobian, x_desired, xdot_desired, x_actual, xdot_actual)
         # Level 2's rows are the identity (H_b, H_a stacked), so only its target
         # g (goal - q*) is needed, as f = -W target (see weighted_objective).
         self._goal[:3] = q_base_desired
