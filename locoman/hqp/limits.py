@@ -53,6 +53,7 @@ class VelocityBox:
         inf = np.full(3, np.inf)
         self._position_limits = np.stack([np.r_[-inf, limits.arm_min], np.r_[inf, limits.arm_max]])
         self._dt = dt
+        self._position_bounds = np.empty_like(self._position_limits)
 
     def __call__(
         self,
@@ -72,7 +73,8 @@ class VelocityBox:
         np.minimum(self._vmax, np.add(qdot_star_prev, self._step, out=hi), out=hi)
         np.minimum(lo, hi, out=lo)
         # min(max(x, a), b) is np.clip(x, a, b) without its overhead.
-        pos_lo, pos_hi = (self._position_limits - q_star) / self._dt
+        pos = np.subtract(self._position_limits, q_star, out=self._position_bounds)
+        pos_lo, pos_hi = np.divide(pos, self._dt, out=pos)
         np.minimum(np.maximum(pos_lo, lo, out=lo), hi, out=lo)
         np.minimum(np.maximum(pos_hi, lo, out=pos_hi), hi, out=hi)
         return lo, hi
