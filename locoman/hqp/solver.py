@@ -119,9 +119,7 @@ class HierarchySolver:
         else:
             # sense resets DAQP's working set: a warm start changes the last bits of qdot,
             # which the replay's grasp amplifies into 5e-6 m of RMSE (measured).
-            self._model.update(
-                f=f, A=a, bupper=self._upper, blower=self._lower, sense=self._sense
-            )
+            self._model.update(f=f, A=a, bupper=self._upper, blower=self._lower, sense=self._sense)
         x, _, flag, _ = self._model.solve()
         if flag < 0:
             raise SolverError(f"DAQP failed on the hierarchical QP (exit flag {flag})")

@@ -22,10 +22,11 @@ from locoman.perception.io import (
     subtask_dir,
 )
 from locoman.perception.prompts import augment_prompt
-from locoman.perception.render_backend import object_patches, render_subtask
-from locoman.perception.sim_view import object_pose, render_sim_view
+from locoman.perception.render_backend import StandOn, object_patches, render_subtask
+from locoman.perception.sim_view import render_sim_view
 from locoman.scene.io import load_objects, load_plan
 from locoman.scene.objects import ContactPatch
+from locoman.scene.plan_state import plan_states, world_pose
 
 
 def subtask_rng(seed: int, scenario: str, index: int) -> np.random.Generator:
@@ -46,13 +47,14 @@ def generate_scenario(
     objects, plan = load_objects(scene_dir), load_plan(scene_dir)
     generator = flux.load_flux_pipeline(cfg.flux) if cfg.backend == "flux" else None
     entries, per_subtask = [], []
-    for sub in plan["subtasks"]:
+    states = plan_states(objects, plan["subtasks"])
+    for sub, state in zip(sorted(plan["subtasks"], key=lambda s: s["index"]), states, strict=True):
         i, name = sub["index"], sub["object"]
         t0 = time.perf_counter()
         prompt = augment_prompt(sub["prompt"])
         folder = subtask_dir(out_dir, i)
-        T_obj = object_pose(scene_dir, name, plan["subtasks"], i)
-        sim = render_sim_view(scene_dir, name, objects[name], T_obj, cfg.sim_view)
+        T_obj = world_pose(objects, state, name)
+        sim = render_sim_view(scene_dir, name, objects[name], T_obj, cfg.sim_view, state.poses)
         write_png(folder / "sim_rgb.png", sim.rgb)
         write_npz(
             folder / "sim_view.npz",
@@ -68,8 +70,17 @@ def generate_scenario(
         if generator is not None:
             write_png(folder / "image.png", flux.generate_image(generator, prompt, cfg, seed + i))
         else:
+            stand_on = None
+            if state.stands_on is not None and state.stands_on != name:
+                T_stand = np.linalg.solve(T_obj, state.pose(state.stands_on))
+                stand_on = StandOn(objects[state.stands_on], T_stand)
             rendered = render_subtask(
-                objects[name], sub, float(T_obj[2, 3]), cfg, subtask_rng(seed, scenario, i)
+                objects[name],
+                sub,
+                float(T_obj[2, 3]),
+                cfg,
+                subtask_rng(seed, scenario, i),
+                stand_on,
             )
             write_png(folder / "image.png", rendered.rgb)
             truth = dict(rendered.truth)

@@ -29,6 +29,7 @@ MIN_OBJECT_PIXELS = 200  # [px] fewer visible object pixels than this is "out of
 IK_TOLERANCE_M = 0.02  # [m] largest miss of a posed demonstrator's contact
 OBJECT_BODY = "object"
 SUPPORT_BODY = "support"
+STAND_BODY = "stand_on"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +47,19 @@ class Variant:
     size: tuple[float, ...]
     rgba: tuple[float, float, float, float]
     texture_rgb: tuple[float, float, float] | None
+
+
+@dataclasses.dataclass(frozen=True)
+class StandOn:
+    """The object the demonstrator stands on, where an earlier subtask stepped onto it.
+
+    Attributes:
+        obj: Its object table entry (``objects.json``).
+        T_object_stand: (4, 4) its pose in the frame of the subtask's object [m].
+    """
+
+    obj: dict[str, Any]
+    T_object_stand: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,9 +101,14 @@ def render_subtask(
     height: float,
     cfg: GenerateCfg,
     rng: np.random.Generator,
+    stand_on: StandOn | None = None,
 ) -> RenderedSubtask:
     """Pose the demonstrator for ``subtask`` against a variant of ``obj`` standing at
     ``height`` [m] (where the object is during the subtask), and render it.
+
+    With ``stand_on`` (the plan state of :mod:`locoman.scene.plan_state`), that object is drawn
+    where the plan left it, relative to the variant's approach face, and the demonstrator
+    stands on its top.
 
     Raises:
         SceneError: When the demonstrator cannot reach the contacts or the object ends up
@@ -103,6 +122,10 @@ def render_subtask(
         variant.kind, geometry.patches, subtask["contacts"], variant.size, cfg.step_height_max_m
     )
     lifted = {t.effector: (t.point + np.array([0.0, 0.0, z0]), t.normal) for t in targets}
+    stand = None
+    if stand_on is not None and not any(t.effector.endswith("_foot") for t in targets):
+        stand = _stand_pose(stand_on, obj, variant, z0)
+        lifted |= _feet_on_top(stand_on.obj, stand)
     view = cfg.view
     yaw = np.deg2rad(rng.uniform(-view.yaw_jitter_deg, view.yaw_jitter_deg))
     lateral = rng.uniform(-view.lateral_jitter_m, view.lateral_jitter_m)
@@ -110,6 +133,8 @@ def render_subtask(
     stance, world_targets = _place_person(lifted, yaw, lateral, standoff)
 
     spec = _generation_spec(variant, z0, cfg, rng)
+    if stand is not None:
+        _add_stand(spec, stand_on.obj, stand)
     model = spec.compile()
     pose = demonstrator.pose_demonstrator(model, world_targets, stance, yaw)
     demonstrator.check_pose(pose, IK_TOLERANCE_M, where)
@@ -118,7 +143,12 @@ def render_subtask(
     side = 1.0 if rng.random() < 0.5 else -1.0
     azimuth = yaw + side * np.deg2rad(rng.uniform(*view.azimuth_deg))
     elevation = np.deg2rad(rng.uniform(*view.elevation_deg))
-    points = np.vstack([_mesh_points(model, pose.qpos), _object_corners(geometry, z0)])
+    points = [_mesh_points(model, pose.qpos), _object_corners(geometry, z0)]
+    if stand is not None:
+        stand_geometry = object_geometry(stand_on.obj["kind"], stand_on.obj["size_m"])
+        corners = _object_corners(stand_geometry, 0.0)
+        points.append(corners @ stand[:3, :3].T + stand[:3, 3])
+    points = np.vstack(points)
     K = camera.intrinsics_from_fovy(cfg.width, cfg.height, fovy)
     cam_pose = _fit_camera(points, K, cfg.width, cfg.height, azimuth, elevation, view.margin)
     spec.worldbody.add_camera(
@@ -138,6 +168,7 @@ def render_subtask(
     human_bodies = {model.body(b).name for b in range(1, model.nbody)} - {
         OBJECT_BODY,
         SUPPORT_BODY,
+        STAND_BODY,
     }
     human_mask = _body_mask(model, seg, human_bodies)
     kp_world = demonstrator.keypoints_world(model, pose.qpos)
@@ -164,6 +195,48 @@ def render_subtask(
         "human_qpos": pose.qpos,
     }
     return RenderedSubtask(rgb=rgb, truth=truth, ik_residual_m=pose.residual_m)
+
+
+def _stand_pose(stand_on: StandOn, obj: dict[str, Any], variant: Variant, z0: float) -> np.ndarray:
+    """Pose (4, 4) of the stood-on object in the generation world: as far in front of the
+    variant's approach face as it is in front of the scene object's (the variant is longer or
+    shorter than the object), at the scene's heights."""
+    pose = stand_on.T_object_stand.copy()
+    pose[0, 3] += 0.5 * (float(obj["size_m"][0]) - float(variant.size[0]))
+    pose[2, 3] += z0
+    return pose
+
+
+def _feet_on_top(
+    stand_obj: dict[str, Any], pose: np.ndarray
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Sole targets on the top patch of the stood-on object, either side of its centre
+    across the person's facing (+x of the generation world)."""
+    patches = object_geometry(stand_obj["kind"], stand_obj["size_m"]).patches
+    top = next((p for p in patches if p.name == "top"), None)
+    if top is None:
+        raise SceneError(f"the demonstrator cannot stand on a {stand_obj['kind']!r}: no top face")
+    centre = pose[:3, :3] @ np.asarray(top.centre) + pose[:3, 3]
+    up = np.array([0.0, 0.0, 1.0])
+    return {
+        name: (centre + np.array([0.0, side * demonstrator.STANCE_HALF_WIDTH, 0.0]), up)
+        for name, side in (("left_foot", 1.0), ("right_foot", -1.0))
+    }
+
+
+def _add_stand(spec: mujoco.MjSpec, stand_obj: dict[str, Any], pose: np.ndarray) -> None:
+    """The stood-on object's primitives, in its own colour, at ``pose`` (4, 4)."""
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, pose[:3, :3].ravel())
+    body = spec.worldbody.add_body(name=STAND_BODY, pos=pose[:3, 3].tolist(), quat=quat.tolist())
+    for part in object_geometry(stand_obj["kind"], stand_obj["size_m"]).primitives:
+        body.add_geom(
+            name=f"{STAND_BODY}/{part.name}",
+            type=GEOM_TYPES[part.shape],
+            size=list(part.size) + [0.0] * (3 - len(part.size)),
+            pos=list(part.pos),
+            rgba=list(stand_obj["rgba"]),
+        )
 
 
 def _place_person(

@@ -23,8 +23,7 @@ from locoman.perception.render_backend import (
     render_rgbd,
 )
 from locoman.scene import g1
-from locoman.scene.io import MJCF_FILE, load_state
-from locoman.scene.rotations import quat_wxyz_to_matrix, yaw_quat_wxyz
+from locoman.scene.io import MJCF_FILE
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,34 +45,6 @@ class SimView:
     T_world_cam: np.ndarray
     T_world_object: np.ndarray
     object_mask: np.ndarray
-
-
-def object_pose(
-    scene_dir: Path, name: str, subtasks: list[dict[str, Any]], index: int
-) -> np.ndarray:
-    """World pose (4, 4) of the object ``name`` during subtask ``index`` of the plan.
-
-    It starts where the scene's initial state has it; every subtask up to ``index`` with a
-    target for it moves it there. A subtask's own target counts: its keyframe is where it
-    ends (the box placed).
-    """
-    for sub in sorted(subtasks, key=lambda s: -int(s["index"])):
-        if sub["index"] <= index and sub["object"] == name and sub.get("target"):
-            pose = np.eye(4)
-            pose[:3, :3] = quat_wxyz_to_matrix(yaw_quat_wxyz(float(sub["target"]["yaw_rad"])))
-            pose[:3, 3] = sub["target"]["pos_m"]
-            return pose
-    state = load_state(scene_dir)
-    names = list(state["body_names"])
-    if name not in names:
-        raise ArtifactError(f"object {name!r} is not a body of the scene in {scene_dir}")
-    i = names.index(name)
-    pose = np.eye(4)
-    mat = np.zeros(9)
-    mujoco.mju_quat2Mat(mat, state["body_quat_wxyz"][i])
-    pose[:3, :3] = mat.reshape(3, 3)
-    pose[:3, 3] = state["body_pos"][i]
-    return pose
 
 
 def _place(model: mujoco.MjModel, data: mujoco.MjData, name: str, pose: np.ndarray) -> None:
@@ -103,9 +74,16 @@ def bounding_sphere(obj: dict[str, Any]) -> tuple[np.ndarray, float]:
 
 
 def render_sim_view(
-    scene_dir: str | Path, name: str, obj: dict[str, Any], T_obj: np.ndarray, cfg: SimViewCfg
+    scene_dir: str | Path,
+    name: str,
+    obj: dict[str, Any],
+    T_obj: np.ndarray,
+    cfg: SimViewCfg,
+    movable_poses: dict[str, np.ndarray] | None = None,
 ) -> SimView:
-    """Render R_s, D_s of object ``name``, at pose ``T_obj`` (4, 4), in the scene stage's MJCF.
+    """Render R_s, D_s of object ``name``, at pose ``T_obj`` (4, 4), in the scene stage's MJCF,
+    with every other movable object where the plan left it (``movable_poses``, world (4, 4);
+    :mod:`locoman.scene.plan_state`).
 
     Raises:
         SceneError: When the object is hidden or out of view, or must move and cannot.
@@ -135,6 +113,8 @@ def render_sim_view(
     model = spec.compile()
     data = mujoco.MjData(model)
     data.qpos[:] = model.key("home").qpos
+    for other, pose in (movable_poses or {}).items():
+        _place(model, data, other, pose)
     _place(model, data, name, T_obj)
     mujoco.mj_forward(model, data)
     option = mujoco.MjvOption()

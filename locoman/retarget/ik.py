@@ -53,12 +53,15 @@ class ContactTarget:
         normal: Outward surface normal there.
         in_contact: Whether the plan puts this end effector in contact (False: a foot that
             only stands).
+        planted: A standing foot that keeps its place (it stands on an object an earlier
+            subtask stepped onto; moving it would be a step the plan does not have).
     """
 
     effector: str
     point: np.ndarray
     normal: np.ndarray
     in_contact: bool
+    planted: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -232,7 +235,7 @@ class Retargeter:
             hand_tasks[hand.effector] = task
         for foot in problem.feet:
             frame = SOLE_FRAMES[foot.effector]
-            if foot.in_contact:
+            if foot.in_contact or foot.planted:
                 task = solver.add_frame_task(frame, _flat_pose(foot.point, base_yaw))
                 task.configure(foot.effector, "soft", cfg.foot_weight, cfg.foot_flat_weight)
                 continue
@@ -283,7 +286,8 @@ class Retargeter:
             effectors.append(foot.effector)
             sole = robot.get_T_world_frame(SOLE_FRAMES[foot.effector])[:3, 3]
             # A standing foot may step in the plane; only its support's height is a target.
-            want.append(foot.point if foot.in_contact else np.r_[sole[:2], foot.point[2]])
+            fixed = foot.in_contact or foot.planted
+            want.append(foot.point if fixed else np.r_[sole[:2], foot.point[2]])
             got.append(sole)
         want_a, got_a = np.array(want).reshape(-1, 3), np.array(got).reshape(-1, 3)
         residual = np.linalg.norm(got_a - want_a, axis=1)

@@ -21,7 +21,7 @@ MCAP_FILE = "keyframes.mcap"
 
 KEYFRAME = ArtifactSchema(
     "retarget.keyframe",
-    1,
+    2,
     "retarget",
     (
         Field("q35", "float64", (35,), "mixed", "base position [m], roll-pitch-yaw [rad], joints"),
@@ -36,6 +36,11 @@ KEYFRAME = ArtifactSchema(
         Field("residual_m", "float64", ("E",), "m", "distance between the two"),
         Field("reachable", "bool", ("E",), "-", "met within retarget.reach_tolerance_m"),
         Field("T_world_object", "float64", (4, 4), "m", "the object's pose in the keyframe"),
+        Field("movable_objects", "str", ("M",), "-", "every movable object of the scene"),
+        Field(
+            "T_world_movable", "float64", ("M", 4, 4), "m", "their poses where the plan left them"
+        ),
+        Field("stands_on", "str", (), "-", "the object the feet stand on, or floor"),
         Field("com_m", "float64", (3,), "m", "centre of mass"),
         Field("iterations", "int64", (), "-", "IK steps"),
     ),

@@ -31,7 +31,8 @@ from locoman.retarget.plot import keyframe_plot, render_keyframe
 from locoman.retarget.problem import body_scale, build_problem, g1_stance_half_width
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
-from locoman.scene.io import load_scene_model
+from locoman.scene.io import load_objects, load_plan, load_scene_model
+from locoman.scene.plan_state import plan_states
 
 
 def feet_left_standing(contacts: dict[str, Any], before: dict[str, np.ndarray]):
@@ -60,14 +61,16 @@ def contact_points(problem: IKProblem, result: IKResult) -> np.ndarray:
     return out
 
 
-def _scene_qpos(model: mujoco.MjModel, q: np.ndarray, obj: str, T_obj: np.ndarray) -> np.ndarray:
+def _scene_qpos(model: mujoco.MjModel, q: np.ndarray, poses: dict[str, np.ndarray]) -> np.ndarray:
+    """The scene's qpos with the G1 at ``q`` and each movable object at its pose (4, 4)."""
     qpos = g1.pin_to_mujoco_qpos(q, model, model.key("home").qpos)
-    joint = f"{obj}_free"
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint) >= 0:
-        quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, T_obj[:3, :3].ravel())
-        adr = model.joint(joint).qposadr[0]
-        qpos[adr : adr + 7] = np.r_[T_obj[:3, 3], quat]
+    for obj, T_obj in poses.items():
+        joint = f"{obj}_free"
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint) >= 0:
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, T_obj[:3, :3].ravel())
+            adr = model.joint(joint).qposadr[0]
+            qpos[adr : adr + 7] = np.r_[T_obj[:3, 3], quat]
     return qpos
 
 
@@ -83,6 +86,9 @@ def retarget_scenario(
     """Solve, check, score, draw and write every subtask's keyframe; return the metrics."""
     prompts = read_json(generate_dir / PROMPTS_FILE, PROMPTS)
     model = load_scene_model(scene_dir)
+    states = {
+        s.index: s for s in plan_states(load_objects(scene_dir), load_plan(scene_dir)["subtasks"])
+    }
     retargeter = Retargeter(cfg)
     half_width, scale = g1_stance_half_width(), body_scale()
     standing: dict[str, np.ndarray] = {}
@@ -97,6 +103,10 @@ def retarget_scenario(
         seconds.append(time.perf_counter() - t0)
         standing = feet_left_standing(contacts, standing)
         points = contact_points(problem, result)
+        # The plan state's poses, with the subtask's object where contact transfer saw it.
+        poses = dict(states[i].poses)
+        if entry["object"] in poses:
+            poses[entry["object"]] = contacts["T_world_object"]
         row = _check(i, entry, result, points, contacts, generate_dir, cfg)
         rows.append(row)
         in_contact = [t.in_contact for t in (*problem.hands, *problem.feet)]
@@ -120,6 +130,9 @@ def retarget_scenario(
                 "residual_m": result.residual_m,
                 "reachable": result.residual_m <= cfg.reach_tolerance_m,
                 "T_world_object": contacts["T_world_object"],
+                "movable_objects": np.array(sorted(poses), dtype=str),
+                "T_world_movable": np.array([poses[n] for n in sorted(poses)]).reshape(-1, 4, 4),
+                "stands_on": states[i].stands_on or "floor",
                 "com_m": np.array(row["com_m"]),
                 "iterations": np.array(result.iterations),
             },
@@ -127,7 +140,7 @@ def retarget_scenario(
         frames.append(g1.link_poses(result.q))
         robot = render_keyframe(
             model,
-            _scene_qpos(model, result.q, entry["object"], contacts["T_world_object"]),
+            _scene_qpos(model, result.q, poses),
             result,
             in_contact,
             yaw_of(problem.R_world_base),

@@ -12,7 +12,8 @@ The human configuration that is remapped:
   robot has shorter arms), and each foot keeps the human's planar offset from the pelvis,
   in the pelvis' heading frame, scaled the same way and at least the G1's own stance
   half-width from the middle (a narrower human stance would cross the G1's feet). Their
-  height is the floor's, or the top the feet stood on in the previous subtask.
+  height is the floor's. Feet that an earlier subtask put on an object stay where they
+  stood (planted): the plan has no step off it.
 """
 
 from __future__ import annotations
@@ -94,7 +95,7 @@ def build_problem(
             feet.append(feet_in_contact[foot])
             continue
         if foot in stand_on:
-            feet.append(ContactTarget(foot, stand_on[foot], UP, False))
+            feet.append(ContactTarget(foot, stand_on[foot], UP, False, planted=True))
             continue
         sole_cam = pose["keypoints_cam_m"][names.index(foot)]
         local = heading.T @ (R_world_cam @ (sole_cam - pelvis_cam))
