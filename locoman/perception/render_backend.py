@@ -24,6 +24,7 @@ from locoman.perception import camera, demonstrator
 from locoman.scene import human
 from locoman.scene.builder import GEOM_TYPES
 from locoman.scene.objects import ContactPatch, ObjectGeometry, object_geometry
+from locoman.scene.plan_state import top_face
 
 MIN_OBJECT_PIXELS = 200  # [px] fewer visible object pixels than this is "out of view"
 IK_TOLERANCE_M = 0.02  # [m] largest miss of a posed demonstrator's contact
@@ -212,11 +213,10 @@ def _feet_on_top(
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Sole targets on the top patch of the stood-on object, either side of its centre
     across the person's facing (+x of the generation world)."""
-    patches = object_geometry(stand_obj["kind"], stand_obj["size_m"]).patches
-    top = next((p for p in patches if p.name == "top"), None)
-    if top is None:
+    face = top_face(stand_obj)
+    if face is None:
         raise SceneError(f"the demonstrator cannot stand on a {stand_obj['kind']!r}: no top face")
-    centre = pose[:3, :3] @ np.asarray(top.centre) + pose[:3, 3]
+    centre = pose[:3, :3] @ face[0] + pose[:3, 3]
     up = np.array([0.0, 0.0, 1.0])
     return {
         name: (centre + np.array([0.0, side * demonstrator.STANCE_HALF_WIDTH, 0.0]), up)
@@ -229,14 +229,28 @@ def _add_stand(spec: mujoco.MjSpec, stand_obj: dict[str, Any], pose: np.ndarray)
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, pose[:3, :3].ravel())
     body = spec.worldbody.add_body(name=STAND_BODY, pos=pose[:3, 3].tolist(), quat=quat.tolist())
-    for part in object_geometry(stand_obj["kind"], stand_obj["size_m"]).primitives:
-        body.add_geom(
-            name=f"{STAND_BODY}/{part.name}",
+    geometry = object_geometry(stand_obj["kind"], stand_obj["size_m"])
+    _add_primitives(body, STAND_BODY, geometry, list(stand_obj["rgba"]))
+
+
+def _add_primitives(
+    body: mujoco.MjsBody,
+    prefix: str,
+    geometry: ObjectGeometry,
+    rgba: list[float],
+    material: str = "",
+) -> None:
+    """One geom per primitive of ``geometry`` on ``body``, named ``<prefix>/<part>``."""
+    for part in geometry.primitives:
+        geom = body.add_geom(
+            name=f"{prefix}/{part.name}",
             type=GEOM_TYPES[part.shape],
             size=list(part.size) + [0.0] * (3 - len(part.size)),
             pos=list(part.pos),
-            rgba=list(stand_obj["rgba"]),
+            rgba=rgba,
         )
+        if material:
+            geom.material = material
 
 
 def _place_person(
@@ -313,16 +327,8 @@ def _generation_spec(
         material = "variant_material"
     geometry = object_geometry(variant.kind, variant.size)
     body = spec.worldbody.add_body(name=OBJECT_BODY, pos=[0.0, 0.0, z0])
-    for part in geometry.primitives:
-        geom = body.add_geom(
-            name=f"{OBJECT_BODY}/{part.name}",
-            type=GEOM_TYPES[part.shape],
-            size=list(part.size) + [0.0] * (3 - len(part.size)),
-            pos=list(part.pos),
-            rgba=list(variant.rgba) if not material else [1.0, 1.0, 1.0, 1.0],
-        )
-        if material:
-            geom.material = material
+    rgba = list(variant.rgba) if not material else [1.0, 1.0, 1.0, 1.0]
+    _add_primitives(body, OBJECT_BODY, geometry, rgba, material)
     if z0 > 0.01:
         # What the object rests on (a table, a shelf, a trolley): a plain block under it,
         # reaching away from the person so that their legs stay clear of it.

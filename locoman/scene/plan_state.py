@@ -72,7 +72,7 @@ def _pose(pos: Any, quat_wxyz: Any) -> np.ndarray:
     return pose
 
 
-def _top_face(obj: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
+def top_face(obj: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
     """Centre (3,) and half extents (2,) of an object's highest upward face (a box's ``top``,
     a trolley's ``platform``) in its frame, if it has one."""
     patches = object_geometry(obj["kind"], obj["size_m"]).patches
@@ -87,7 +87,7 @@ def _riders(
     objects: dict[str, dict[str, Any]], poses: dict[str, np.ndarray], carrier: str
 ) -> list[str]:
     """Movable objects whose bottom (their frame's origin) rests on ``carrier``'s top face."""
-    face = _top_face(objects[carrier])
+    face = top_face(objects[carrier])
     if face is None:
         return []
     centre, half = face
