@@ -14,6 +14,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.to.collision import (
     CollisionCfg,
+    CollisionTerms,
     Obstacle,
     box_clearance,
     box_corners,
@@ -21,7 +22,7 @@ from locoman.to.collision import (
     link_spheres,
     obstacles_from_objects,
     penetration_residual,
-    self_collision_residuals,
+    self_collision_penetrations,
     sphere_box_penetration,
     sphere_sphere_penetration,
     vertical_edge_points,
@@ -147,8 +148,9 @@ def test_self_collision_penalises_what_mujoco_finds_in_collision(roll):
     into the torso both do."""
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     pairs = CollisionCfg().self_pairs
-    residuals = self_collision_residuals(kin.frame_pose, pairs, 0.0, 0.01)
-    cost = ca.Function("c", [kin.q], [ca.sumsqr(residuals)])
+    terms = CollisionTerms()
+    terms.add("penalty", self_collision_penetrations(kin.frame_pose, pairs, 0.0))
+    cost = ca.Function("c", [kin.q], [ca.sumsqr(terms.residuals(0.01, 1.0))])
     standing = g1.standing_q35()
     assert float(cost(standing)) < 1e-4  # (softness ln 2)^2 per pair at most, near contact
     assert not _mujoco_self_contacts(standing)
@@ -209,3 +211,54 @@ def test_vertical_edge_points_run_down_every_edge_at_most_the_spacing_apart():
             z = np.sort(local[np.isclose(local[:, 0], x) & np.isclose(local[:, 1], y), 2])
             assert z[0] == pytest.approx(-0.36) and z[-1] == pytest.approx(0.36)
             assert np.diff(z).max() <= 0.1 + 1e-12
+
+
+@pytest.mark.parametrize("treatment", ["penalty", "constraint"])
+def test_the_hard_constraint_keeps_a_body_out_where_the_penalty_lets_it_in(treatment):
+    """A single-body toy: a ball (radius 5 cm) crosses a box-shaped obstacle from one side
+    to the other with least acceleration, its path started straight through the box. With
+    (11) as a constraint every node keeps the margin (p >= 0); a weak penalty (12) trades
+    penetration for acceleration and lets the ball in."""
+    nodes, radius = 21, 0.05
+    centre, R, half = ca.DM.zeros(3), ca.DM.eye(3), ca.DM([0.1, 0.1, 0.1])
+    x = ca.SX.sym("x", 3, nodes)
+    terms = CollisionTerms()
+    terms.add(
+        treatment,
+        [sphere_box_penetration(x[:, k], radius, centre, R, half, CFG) for k in range(nodes)],
+    )
+    acceleration = x[:, 2:] - 2 * x[:, 1:-1] + x[:, :-2]
+    cost = 1e3 * ca.sumsqr(acceleration) + ca.sumsqr(terms.residuals(CFG.softness, 1e-2))
+    ends = ca.vertcat(x[:, 0] - [-0.5, 0.0, 0.0], x[:, -1] - [0.5, 0.0, 0.0])
+    g = ca.vertcat(ends, terms.inequalities())
+    solver = ca.nlpsol(
+        "toy",
+        "ipopt",
+        {"x": ca.vec(x), "f": cost, "g": g},
+        {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes"}},
+    )
+    start = np.c_[np.linspace(-0.5, 0.5, nodes), np.full(nodes, 0.01), np.zeros(nodes)].T
+    rows = g.numel()
+    out = solver(
+        x0=start.ravel(order="F"),
+        lbg=np.zeros(rows),
+        ubg=np.r_[np.zeros(6), np.full(rows - 6, np.inf)],
+    )
+    assert solver.stats()["success"]
+    path = np.asarray(out["x"]).reshape(3, nodes, order="F")
+    p = np.array(
+        [
+            float(
+                ca.Function(
+                    "p", [x], [sphere_box_penetration(x[:, k], radius, centre, R, half, CFG)]
+                )(path)
+            )
+            for k in range(nodes)
+        ]
+    )
+    if treatment == "constraint":
+        assert p.min() >= -1e-6
+        assert terms.residuals(CFG.softness, 1.0).numel() == 0
+    else:
+        assert p.min() < -0.1  # more than a centimetre inside, with L = 0.1 m
+        assert terms.inequalities().numel() == 0

@@ -56,3 +56,23 @@ def test_the_first_touch_stage_has_independent_equalities():
     free = np.setdiff1d(np.arange(2 * WIDTH), fixed)
     singular = np.linalg.svd(J[:, free], compute_uv=False)
     assert singular[-1] > 1e-6 * singular[0]
+
+
+def test_a_collision_kind_is_a_penalty_or_a_hard_constraint():
+    """Switching ``object_body`` from the penalty (12) to the constraint (11) moves its p
+    from the cost's residuals into the stage's inequalities p >= 0, one row per residual."""
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    carried = NodeMode((True, True), (True, True), True, False)
+    shapes = {}
+    for treatment in ("off", "penalty", "constraint"):
+        cfg = CollisionCfg(
+            self_pairs=[], object_body=treatment, hands_environment="off", object_environment="off"
+        )
+        builder = StageBuilder(kin, BOX, contact_frames(), CostWeights(), ContactCfg(), cfg, ())
+        group = builder.group(carried, carried, False, np.array([0]))
+        inequalities = int(np.count_nonzero(np.isinf(group.upper)))
+        shapes[treatment] = (inequalities, int(group.function.size1_out(2)))
+    body_spheres = 6  # BODY_POINTS; both palms touch the object
+    assert shapes["off"][1] == 0
+    assert shapes["penalty"] == (shapes["off"][0], body_spheres)
+    assert shapes["constraint"] == (shapes["off"][0] + body_spheres, 0)

@@ -7,6 +7,7 @@ warm start, all) are the switches ``keyframe_base``, ``keyframe_foot`` and
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from locoman.to.collision import CollisionCfg
@@ -54,7 +55,13 @@ class EvaluateCfg:
         friction_tol: Largest violation of (3) allowed [N, N m].
         slip_tol_m: Largest stance-foot slip allowed [m].
         penetration_tol_m: Largest average penetration allowed [m].
+        max_penetration_tol_m: Largest penetration at any node [m] (the average hides a
+            deep one; tiny's deepest is 2.4 mm, a foot on the floor).
         goal_tol_m: Largest distance of the object from its target [m].
+        rest_height_tol_m: At the end the object's bottom lies this close to a support's
+            top face (the floor or a fixed object's) [m].
+        rest_speed_tol: ... and every rate of its (p, rpy) is at most this [m/s, rad/s].
+        rest_tilt_tol_rad: ... and its roll and pitch at most this [rad].
         filmstrip_frames: Frames in the PNG filmstrip.
     """
 
@@ -62,14 +69,30 @@ class EvaluateCfg:
     friction_tol: float = 1e-6
     slip_tol_m: float = 1e-3
     penetration_tol_m: float = 0.01
+    max_penetration_tol_m: float = 0.02
     goal_tol_m: float = 0.02
+    rest_height_tol_m: float = 0.01
+    rest_speed_tol: float = 0.01
+    rest_tilt_tol_rad: float = 0.1
     filmstrip_frames: int = 8
 
     def check(self) -> list[tuple[str, str]]:
-        tols = (self.dynamics_tol, self.friction_tol, self.slip_tol_m, self.penetration_tol_m)
-        errors = []
-        if min(*tols, self.goal_tol_m) <= 0.0:
-            errors.append(("dynamics_tol", "tolerances must be > 0"))
+        tols = (
+            "dynamics_tol",
+            "friction_tol",
+            "slip_tol_m",
+            "penetration_tol_m",
+            "max_penetration_tol_m",
+            "goal_tol_m",
+            "rest_height_tol_m",
+            "rest_speed_tol",
+            "rest_tilt_tol_rad",
+        )
+        errors = [
+            (name, f"must be finite and > 0, got {getattr(self, name)}")
+            for name in tols
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0.0)
+        ]
         if self.filmstrip_frames < 1:
             errors.append(("filmstrip_frames", "must be >= 1"))
         return errors

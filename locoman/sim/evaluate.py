@@ -10,6 +10,8 @@
 - Friction: (3) with the wrenches in each contact's own frame, from Pinocchio's feet and the
   object's faces.
 - Slip: each stance foot's sole centre between consecutive nodes in contact.
+- Rest: where the object ends, it must stand upright on a support (the floor or a fixed
+  object's top face) and be still; a placement target in mid-air fails here.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from locoman.scene import g1
+from locoman.scene.plan_state import top_face
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.to.kinematics import pin_configuration, pin_velocity
 from locoman.to.layout import ObjectModel
@@ -218,3 +221,50 @@ def stance_slip(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
                 move = soles[k + 1][i][0][:2] - soles[k][i][0][:2]
                 worst = max(worst, float(np.linalg.norm(move)))
     return worst
+
+
+def fixed_pose(spec: dict) -> np.ndarray:
+    """World pose (4, 4) of an object where the scene puts it (an ``objects.json`` entry)."""
+    pose = np.eye(4)
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(spec["quat_wxyz"], dtype=float))
+    pose[:3, :3], pose[:3, 3] = mat.reshape(3, 3), spec["pos_m"]
+    return pose
+
+
+def support_under(
+    objects: dict[str, dict], object_q: np.ndarray, height_tol_m: float
+) -> str | None:
+    """What a box-like object at ``object_q`` (p, rpy; its frame at its bottom face's
+    centre) rests on: ``floor`` when its bottom is at the floor's height, else the fixed
+    object whose top face holds its bottom centre at that face's height, within
+    ``height_tol_m`` [m]; None when it rests on nothing (it hangs in mid-air, or sinks into
+    a support)."""
+    bottom = np.asarray(object_q[:3], dtype=float)
+    if abs(bottom[2]) <= height_tol_m:
+        return "floor"
+    for name, spec in sorted(objects.items()):
+        face = top_face(spec) if not spec["movable"] else None
+        if face is None:
+            continue
+        centre, half = face
+        local = np.linalg.solve(fixed_pose(spec), np.r_[bottom, 1.0])[:3] - centre
+        if abs(local[2]) <= height_tol_m and np.all(np.abs(local[:2]) <= half):
+            return name
+    return None
+
+
+def object_at_rest(
+    objects: dict[str, dict],
+    object_q: np.ndarray,
+    object_v: np.ndarray,
+    height_tol_m: float,
+    speed_tol: float,
+    tilt_tol_rad: float,
+) -> tuple[bool, str | None]:
+    """Whether the object ends upright (roll and pitch within ``tilt_tol_rad`` [rad]), still
+    (every rate within ``speed_tol`` [m/s, rad/s]) and on a support; and that support."""
+    support = support_under(objects, object_q, height_tol_m)
+    upright = bool(np.all(np.abs(object_q[3:5]) <= tilt_tol_rad))
+    still = bool(np.all(np.abs(object_v) <= speed_tol))
+    return support is not None and upright and still, support

@@ -2,7 +2,8 @@
 
 Layout under ``data/<scenario>/evaluate/``::
 
-    metrics.json              penetration, residuals, friction, slip, goal, success
+    metrics.json              penetration, residuals, friction, slip, goal, rest, success
+                              and failed_checks (which of them failed)
     plots/penetration.csv     total penetration per node (paper A, Fig. 5), for dvc plots
     plots/filmstrip.png       the motion, a few nodes side by side
 """
@@ -31,6 +32,7 @@ from locoman.scene.io import load_objects, load_scene_model
 from locoman.sim.evaluate import (
     dynamics_residuals,
     friction_violation,
+    object_at_rest,
     penetrations,
     scene_qpos,
     stance_slip,
@@ -63,8 +65,9 @@ def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -
             renderer.update_scene(data, camera=cam, scene_option=option)
             tile = fit_tile(renderer.render().copy(), TILE)[0]
             label = f"t={time[k]:.2f}s {traj['phase'][k]}"
+            # White on the tile's black letterbox band (black was unreadable there).
             cv2.putText(
-                tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA
+                tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA
             )
             tiles.append(tile)
     while len(tiles) % 2:
@@ -73,12 +76,23 @@ def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -
     return np.vstack([np.hstack(tiles[:half]), np.hstack(tiles[half:])]) if half else tiles[0]
 
 
+def all_finite(traj: dict[str, np.ndarray]) -> bool:
+    """Every floating-point array of the trajectory is finite (a NaN in q replays as no
+    penetration at all)."""
+    return all(
+        bool(np.all(np.isfinite(v)))
+        for v in traj.values()
+        if isinstance(v, np.ndarray) and np.issubdtype(v.dtype, np.floating)
+    )
+
+
 def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: EvaluateCfg) -> dict:
     """Replay, check, and write the metrics and plots; returns the metrics."""
     traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
     model = load_scene_model(scene_dir)
     name = str(traj["object_name"])
-    spec = load_objects(scene_dir)[name]
+    objects = load_objects(scene_dir)
+    spec = objects[name]
     obj = ObjectModel.from_spec(name, spec)
     sole_centre = contact_frames().sole["left_sole"]
     per_node, deepest = penetrations(model, traj["q"], name, traj["object_q"])
@@ -113,14 +127,29 @@ def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Eval
         else 0.0,
         "duration_s": float(traj["dt"][:-1].sum()),
     }
-    metrics["success"] = bool(
-        bool(traj["success"])
-        and residuals.max <= cfg.dynamics_tol
-        and friction <= cfg.friction_tol
-        and slip <= cfg.slip_tol_m
-        and avg <= cfg.penetration_tol_m
-        and goal_error <= cfg.goal_tol_m
+    at_rest, support = object_at_rest(
+        objects,
+        final,
+        traj["object_v"][-1],
+        cfg.rest_height_tol_m,
+        cfg.rest_speed_tol,
+        cfg.rest_tilt_tol_rad,
     )
+    metrics["object_support_at_end"] = support
+    # success means every one of these; NaN fails every comparison.
+    checks = {
+        "solver_converged": bool(traj["success"]),
+        "finite": all_finite(traj),
+        "dynamics_residual": residuals.max <= cfg.dynamics_tol,
+        "friction_cone": friction <= cfg.friction_tol,
+        "stance_foot_slip": slip <= cfg.slip_tol_m,
+        "avg_penetration": avg <= cfg.penetration_tol_m,
+        "max_penetration": float(per_node.max()) <= cfg.max_penetration_tol_m,
+        "object_goal": goal_error <= cfg.goal_tol_m,
+        "object_at_rest_on_support": at_rest,
+    }
+    metrics["failed_checks"] = [name for name, passed in checks.items() if not passed]
+    metrics["success"] = not metrics["failed_checks"]
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["node", "time_s", "penetration_m"])

@@ -13,8 +13,9 @@ clearance instead, c(x) ~ max_i (|x_i| - a_i), the box's signed distance on its 
 c >= r + margin, and p = (c - r - margin) / L takes the place of (11)'s d^2 - 1, with one
 length L for every pair, so that a centimetre costs the same everywhere.
 
-Which pairs are checked is configuration (:class:`CollisionCfg`): the paper adds a minimal
-set per scenario, since every pair makes the problem less convex.
+Which pairs are checked, and how, is configuration (:class:`CollisionCfg`): the paper adds
+a minimal set per scenario, since every pair makes the problem less convex, and treats each
+kind either with the penalty (12) or as the hard constraint (11), p >= 0 (S2's knees).
 """
 
 from __future__ import annotations
@@ -37,6 +38,11 @@ _ARM_LINKS = ("shoulder_yaw_link", "elbow_link", "wrist_yaw_link", "rubber_hand"
 _TRUNK_LINKS = ("torso_link", "pelvis", "{side}_hip_roll_link", "{side}_hip_yaw_link")
 
 
+# How a collision kind enters the TO: not at all, as the penalty (12) on p, or as the hard
+# constraint (11) p >= 0.
+TREATMENTS = ("off", "penalty", "constraint")
+
+
 def _default_self_pairs() -> list[list[str]]:
     pairs = []
     for side in ("left", "right"):
@@ -51,18 +57,20 @@ def _default_self_pairs() -> list[list[str]]:
 
 @dataclasses.dataclass
 class CollisionCfg:
-    """The collision terms of the TO (paper A, Sec. IV-D).
+    """The collision terms of the TO (paper A, Sec. IV-D). Each kind has a treatment of
+    :data:`TREATMENTS`: ``off``, ``penalty`` (12) or ``constraint`` (11); a change of
+    treatment changes the problem's structure (one compile).
 
     Attributes:
-        self_pairs: Link pairs of the G1 kept apart by the penalty (12) between their
-            spheres.
-        object_body: (12) between the robot's body points, and each palm while it does not
-            touch the object, and the object.
-        hands_environment: (12) between the palms and every fixed object's bounding box.
-        object_environment: (12) between the corners of the object, while no support holds
-            it, and every fixed object's bounding box, and between the obstacles' vertical
-            edges and the object. (As a hard constraint (11) the four bottom corners of a
-            level box are dependent, and IPOPT stalled.)
+        self_pairs: Link pairs of the G1 kept apart between their spheres.
+        self_collision: Treatment of ``self_pairs``.
+        object_body: Between the robot's body points, and each palm while it does not touch
+            the object, and the object.
+        hands_environment: Between the palms and every fixed object's bounding box.
+        object_environment: Between the corners of the object, while no support holds it,
+            and every fixed object's bounding box, and between the obstacles' vertical edges
+            and the object. (As the constraint (11) the four bottom corners of a level box
+            are dependent, and IPOPT stalled: keep it a penalty.)
         margin_m: Clearance added to every pair [m].
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.
@@ -72,9 +80,10 @@ class CollisionCfg:
     """
 
     self_pairs: list[list[str]] = dataclasses.field(default_factory=_default_self_pairs)
-    object_body: bool = True
-    hands_environment: bool = True
-    object_environment: bool = True
+    self_collision: str = "penalty"
+    object_body: str = "penalty"
+    hands_environment: str = "penalty"
+    object_environment: str = "penalty"
     margin_m: float = 0.01
     smoothing_m: float = 0.004
     length_m: float = 0.1
@@ -87,6 +96,9 @@ class CollisionCfg:
         unknown = sorted({name for pair in self.self_pairs for name in pair} - links)
         if any(len(pair) != 2 for pair in self.self_pairs) or unknown:
             errors.append(("self_pairs", f"needs pairs of G1 link names; unknown: {unknown}"))
+        for kind in KINDS:
+            if getattr(self, kind) not in TREATMENTS:
+                errors.append((kind, f"must be one of {list(TREATMENTS)}"))
         if self.length_m <= 0.0:
             errors.append(("length_m", "must be > 0 m"))
         if self.softness <= 0.0:
@@ -94,6 +106,10 @@ class CollisionCfg:
         if self.smoothing_m <= 0.0 or self.margin_m < np.log(3.0) * self.smoothing_m:
             errors.append(("margin_m", "needs smoothing_m > 0 and margin_m >= ln(3) smoothing_m"))
         return errors
+
+
+# The fields of CollisionCfg that hold a treatment.
+KINDS = ("self_collision", "object_body", "hands_environment", "object_environment")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -249,20 +265,16 @@ def link_spheres(link: str) -> tuple[Sphere, ...]:
     return tuple(spheres)
 
 
-def self_collision_residuals(
-    frame_pose, pairs: list[list[str]], margin: float, softness: float
-) -> ca.SX:
-    """Residuals of (12) between the spheres of each link pair (the penalty is their sum of
-    squares), each sphere pair an ellipsoid (a ball) of radius r_a + r_b + margin about one
-    centre (11).
+def self_collision_penetrations(frame_pose, pairs: list[list[str]], margin: float) -> list[ca.SX]:
+    """p of (11) between the spheres of each link pair, each sphere pair an ellipsoid (a
+    ball) of radius r_a + r_b + margin about one centre.
 
     Args:
         frame_pose: name -> (R, p) symbolic world pose of a link.
         pairs: Link pairs.
         margin: [m].
-        softness: Of :func:`penetration_residual` [-].
     """
-    residuals = []
+    out = []
     poses = {}
     for link in {name for pair in pairs for name in pair}:
         R, p = frame_pose(link)
@@ -270,6 +282,31 @@ def self_collision_residuals(
     for a, b in pairs:
         for ca_, ra in poses[a]:
             for cb, rb in poses[b]:
-                p = sphere_sphere_penetration(ca_, cb, ra + rb + margin)
-                residuals.append(penetration_residual(p, softness))
-    return ca.vertcat(*residuals)
+                out.append(sphere_sphere_penetration(ca_, cb, ra + rb + margin))
+    return out
+
+
+@dataclasses.dataclass
+class CollisionTerms:
+    """The scaled penetrations p (11) of one node, sorted by how the configuration treats
+    their kind: the penalty (12) or the hard constraint (11)."""
+
+    penalized: list[ca.SX] = dataclasses.field(default_factory=list)
+    constrained: list[ca.SX] = dataclasses.field(default_factory=list)
+
+    def add(self, treatment: str, penetrations: list[ca.SX]) -> None:
+        """Add the p of one kind, treated by ``treatment`` (:data:`TREATMENTS`)."""
+        if treatment == "penalty":
+            self.penalized += penetrations
+        elif treatment == "constraint":
+            self.constrained += penetrations
+
+    def residuals(self, softness: ca.SX, weight: ca.SX) -> ca.SX:
+        """The residuals of (12), scaled by sqrt(weight): their sum of squares is the
+        weighted penalty."""
+        r = [penetration_residual(p, softness) for p in self.penalized]
+        return ca.sqrt(weight) * ca.vertcat(*r) if r else ca.SX(0, 1)
+
+    def inequalities(self) -> ca.SX:
+        """The left-hand sides of (11), p >= 0."""
+        return ca.vertcat(*self.constrained) if self.constrained else ca.SX(0, 1)

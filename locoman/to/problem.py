@@ -34,11 +34,11 @@ from locoman.retarget.robot import ContactFrames
 from locoman.scene import g1
 from locoman.to.collision import (
     CollisionCfg,
+    CollisionTerms,
     Obstacle,
     box_corners,
     edge_point_count,
-    penetration_residual,
-    self_collision_residuals,
+    self_collision_penetrations,
     sphere_box_penetration,
     vertical_edge_points,
 )
@@ -244,23 +244,26 @@ class StageBuilder:
         )
 
     def self_collision_group(self, nodes: np.ndarray) -> StageGroup | None:
-        """(12) between the spheres of each of ``collision.self_pairs``, from q; None when
-        there are no pairs."""
-        if not self.collision.self_pairs:
+        """(12), or (11), between the spheres of each of ``collision.self_pairs``, from q;
+        None when there are no pairs or the kind is off."""
+        cfg = self.collision
+        if not cfg.self_pairs or cfg.self_collision == "off":
             return None
         z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
-        cfg = self.collision
-        residuals = self_collision_residuals(
-            self.kin.frame_pose, cfg.self_pairs, cfg.margin_m, cfg.softness
+        terms = CollisionTerms()
+        terms.add(
+            cfg.self_collision,
+            self_collision_penetrations(self.kin.frame_pose, cfg.self_pairs, cfg.margin_m),
         )
-        of_q = ca.Function("self_collision", [self.kin.q, self.theta], [residuals])
-        scale = ca.sqrt(self.w.collision)
-        fn = ca.Function(
-            "self_collision_node",
-            [z, p, self.theta],
-            [ca.SX(0, 1), ca.SX(0), scale * of_q(_var(z, "q"), self.theta)],
+        of_q = ca.Function(
+            "self_collision",
+            [self.kin.q, self.theta],
+            [terms.inequalities(), terms.residuals(cfg.softness, self.w.collision)],
         )
-        return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(0), np.zeros(0))
+        rows, residuals = of_q(_var(z, "q"), self.theta)
+        fn = ca.Function("self_collision_node", [z, p, self.theta], [rows, ca.SX(0), residuals])
+        n = rows.numel()
+        return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(n), np.full(n, np.inf))
 
     def _foot(self, z: ca.SX, i: int) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """Sole centre [m], its velocity [m/s], rotation and angular velocity [rad/s]."""
@@ -394,26 +397,25 @@ class StageBuilder:
         return rows
 
     def _object_environment(self, z: ca.SX) -> list[ca.SX]:
-        """Residuals of (12) of each corner of the object in each obstacle, and of the
-        obstacles' vertical edges in the object."""
+        """p (11) of each corner of the object in each obstacle, and of the obstacles'
+        vertical edges in the object."""
         R_o, p_o, _ = self._object_frame(z)
         half = self._object_half_size()
         corners = [p_o + R_o @ c for c in box_corners(half)]
         centre = p_o + R_o @ self.obj.com
-        residuals = []
+        out = []
         for obstacle, count in zip(self.obstacles, self.edge_counts, strict=True):
             middle, R, box = obstacle.frame()
-            for c in corners:
-                p = sphere_box_penetration(c, 0.0, middle, R, box, self.collision)
-                residuals.append(penetration_residual(p, self.collision.softness))
-            for point in vertical_edge_points(obstacle, count):
-                p = sphere_box_penetration(point, 0.0, centre, R_o, half, self.collision)
-                residuals.append(penetration_residual(p, self.collision.softness))
-        return residuals
+            out += [sphere_box_penetration(c, 0.0, middle, R, box, self.collision) for c in corners]
+            out += [
+                sphere_box_penetration(point, 0.0, centre, R_o, half, self.collision)
+                for point in vertical_edge_points(obstacle, count)
+            ]
+        return out
 
     def node_cost(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> ca.SX:
         """Node k's share of (8) plus the keyframe and goal costs its parameters switch on,
-        but for the collision penalties (:meth:`collision_residuals`)."""
+        but for the collision penalties (:meth:`collision_terms`)."""
         w = self.w
         q, v = _var(z, "q"), _var(z, "v")
         com = _kin(z, "com")
@@ -452,33 +454,37 @@ class StageBuilder:
             cost += w.object_upright * ca.sumsqr(qo[3:5])
         return cost
 
-    def collision_residuals(self, z: ca.SX, mode: NodeMode) -> ca.SX:
-        """Residuals of the weighted penalties (12) at node k: of the body points, and of
-        the palms not touching the object, in the object; of the object's corners while it
-        is carried, and of the palms, in the obstacles. A palm is its capsule's centre and
-        end spheres."""
+    def collision_terms(self, z: ca.SX, mode: NodeMode) -> CollisionTerms:
+        """p (11) at node k, each kind under its treatment: of the body points, and of the
+        palms not touching the object, in the object; of the object's corners while it is
+        carried, and of the palms, in the obstacles. A palm is its capsule's centre and end
+        spheres."""
         cfg = self.collision
         palms = [self._palm_spheres(z, i) for i in range(2)]
-        residuals = []
-        if cfg.object_body:
+        terms = CollisionTerms()
+        if cfg.object_body != "off":
             R_o, p_o, _ = self._object_frame(z)
             centre = p_o + R_o @ self.obj.com
             half = self._object_half_size()
             points = _kin(z, "body_points")
             spheres = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
             spheres += [s for i in range(2) if not mode.hands[i] for s in palms[i]]
-            for point, radius in spheres:
-                p = sphere_box_penetration(point, radius, centre, R_o, half, cfg)
-                residuals.append(penetration_residual(p, self.collision.softness))
-        if cfg.object_environment and mode.object_active and not mode.object_supported:
-            residuals += self._object_environment(z)
-        if cfg.hands_environment:
-            for obstacle in self.obstacles:
-                centre, R, box = obstacle.frame()
-                for point, radius in palms[0] + palms[1]:
-                    p = sphere_box_penetration(point, radius, centre, R, box, cfg)
-                    residuals.append(penetration_residual(p, self.collision.softness))
-        return ca.sqrt(self.w.collision) * ca.vertcat(*residuals)
+            terms.add(
+                cfg.object_body,
+                [sphere_box_penetration(c, r, centre, R_o, half, cfg) for c, r in spheres],
+            )
+        if cfg.object_environment != "off" and mode.object_active and not mode.object_supported:
+            terms.add(cfg.object_environment, self._object_environment(z))
+        if cfg.hands_environment != "off":
+            terms.add(
+                cfg.hands_environment,
+                [
+                    sphere_box_penetration(point, radius, *obstacle.frame(), cfg)
+                    for obstacle in self.obstacles
+                    for point, radius in palms[0] + palms[1]
+                ],
+            )
+        return terms
 
     def _object_half_size(self) -> ca.SX:
         """(3,) the object's half sizes [m]: its patch's, and half its height (its frame
@@ -493,14 +499,16 @@ class StageBuilder:
         equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(
             z, z1, p1, mode, mode_next
         )
-        inequalities = self._inequalities(z, p, mode)
-        eq = ca.vertcat(*equalities)
-        ineq = ca.vertcat(*inequalities) if inequalities else ca.SX(0, 1)
+        collisions = [self.collision_terms(z, mode)]
         cost = self.node_cost(z, p, mode)
-        residuals = self.collision_residuals(z, mode)
         if last:
             cost += self.node_cost(z1, p1, mode_next)
-            residuals = ca.vertcat(residuals, self.collision_residuals(z1, mode_next))
+            collisions.append(self.collision_terms(z1, mode_next))
+        inequalities = self._inequalities(z, p, mode) + [c.inequalities() for c in collisions]
+        eq = ca.vertcat(*equalities)
+        ineq = ca.vertcat(*inequalities)
+        softness, weight = self.collision.softness, self.w.collision
+        residuals = ca.vertcat(*[c.residuals(softness, weight) for c in collisions])
         fn = ca.Function(name, [z, z1, p, p1, self.theta], [ca.vertcat(eq, ineq), cost, residuals])
         lower = np.zeros(eq.numel() + ineq.numel())
         upper = np.r_[np.zeros(eq.numel()), np.full(ineq.numel(), np.inf)]

@@ -302,7 +302,8 @@ def bounds(
     inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg
 ) -> tuple[np.ndarray, np.ndarray]:
     """Variable bounds (WIDTH, N): joint position and velocity limits, the initial state,
-    inactive contacts' wrenches and slacks at zero, the untouched object at rest."""
+    robot and object at rest at the end, inactive contacts' wrenches and slacks at zero,
+    the untouched object at rest."""
     model = g1.g1_pinocchio_model()
     n = schedule.nodes
     lo, hi = np.full((WIDTH, n), -np.inf), np.full((WIDTH, n), np.inf)
@@ -320,7 +321,10 @@ def bounds(
     lo[dt, -1] = hi[dt, -1] = cfg.dt_bounds[0]
     _sanity_bounds(lo, hi, (pin.computeTotalMass(model) + inputs.obj.mass) * GRAVITY)
     lo[q, 0] = hi[q, 0] = inputs.q_start
-    lo[v, 0] = hi[v, 0] = 0.0
+    # The motion starts and ends at rest, the object too (evaluate checks it stands still
+    # on its support at the end; without this tiny's box still turned at 0.37 rad/s).
+    lo[v, 0] = hi[v, 0] = lo[v, -1] = hi[v, -1] = 0.0
+    lo[VARIABLES["object_v"], -1] = hi[VARIABLES["object_v"], -1] = 0.0
     rest = np.r_[0.0, 0.0, inputs.obj.mass * GRAVITY, 0.0, 0.0, 0.0]
     for k, mode in enumerate(modes):
         last = k == n - 1

@@ -1,0 +1,70 @@
+"""The evaluation's success: every check of its own, and a named reason when one fails
+(issue 24: a mid-air placement and a NaN trajectory both passed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from locoman.config.to import EvaluateCfg
+from locoman.sim.evaluate import object_at_rest, support_under
+from locoman.sim.pipeline import all_finite
+
+
+def _table(pos, yaw=0.0) -> dict:
+    """An ``objects.json`` entry of a fixed 0.6 x 0.8 x 0.72 m table."""
+    quat = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    return {
+        "kind": "table",
+        "size_m": [0.6, 0.8, 0.72],
+        "pos_m": pos,
+        "quat_wxyz": quat,
+        "movable": False,
+    }
+
+
+@pytest.fixture
+def objects() -> dict:
+    return {"table": _table([0.55, 0.0, 0.0], yaw=0.3)}
+
+
+def test_an_object_on_a_table_top_or_the_floor_rests_on_it(objects):
+    on_table = np.r_[0.55 + 0.1, 0.05, 0.72, 0.0, 0.0, 0.2]
+    assert support_under(objects, on_table, 0.01) == "table"
+    assert support_under(objects, np.r_[2.0, 1.0, 0.004, 0.0, 0.0, 0.0], 0.01) == "floor"
+
+
+@pytest.mark.parametrize(
+    "where",
+    [
+        [3.0, 3.0, 0.72],  # the issue's mid-air target: a table's height over bare floor
+        [0.55, 0.0, 0.60],  # sunk into the table top
+        [0.55 + 0.5, 0.0, 0.72],  # beside the table, at its height
+    ],
+)
+def test_an_object_in_mid_air_or_inside_a_table_rests_on_nothing(objects, where):
+    assert support_under(objects, np.r_[where, 0.0, 0.0, 0.0], 0.01) is None
+
+
+def test_at_rest_needs_a_support_upright_and_still(objects):
+    q = np.r_[0.6, 0.0, 0.72, 0.0, 0.0, 0.0]
+    still = np.zeros(6)
+    assert object_at_rest(objects, q, still, 0.01, 0.01, 0.1) == (True, "table")
+    tipped = q + np.r_[0, 0, 0, 0.3, 0, 0]
+    assert not object_at_rest(objects, tipped, still, 0.01, 0.01, 0.1)[0]
+    moving = still + np.r_[0.05, 0, 0, 0, 0, 0]
+    assert not object_at_rest(objects, q, moving, 0.01, 0.01, 0.1)[0]
+
+
+def test_a_nan_anywhere_in_the_trajectory_is_not_finite():
+    traj = {"q": np.zeros((5, 35)), "phase": np.array(["a"] * 5), "success": np.array(True)}
+    assert all_finite(traj)
+    traj["q"][3, 7] = np.nan
+    assert not all_finite(traj)
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, 0.0, -1.0])
+def test_evaluate_tolerances_must_be_finite_and_positive(value):
+    errors = dict(EvaluateCfg(max_penetration_tol_m=value).check())
+    assert "max_penetration_tol_m" in errors
+    assert dict(EvaluateCfg().check()) == {}
