@@ -8,6 +8,7 @@ import yaml
 from locoman.config import validate
 from locoman.config.compose import compose_text
 from locoman.errors import ConfigError
+from locoman.stage import stage_dir
 
 
 @pytest.fixture(scope="module")
@@ -77,3 +78,16 @@ def test_a_large_via_point_variance_is_accepted(raw):
     ok["kmp"]["cases"]["replica"]["via_points"][0]["wrist_vel_variance"] = 10.0
     ok["kmp"]["via_point_variance"] = 1.0
     assert validate(ok).kmp.cases["replica"].via_points[0].wrist_vel_variance == 10.0
+
+
+@pytest.mark.parametrize("name", ["../../traversal_x", "a/b", "", ".hidden", "x" * 65])
+def test_a_scenario_name_that_is_a_path_is_refused(raw, name, tmp_path, monkeypatch):
+    """issue 24: the key ``../../traversal_x`` wrote 6 files outside the repository."""
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["scenarios"][name] = bad["scenarios"]["tiny"]
+    with pytest.raises(ConfigError, match="scenario name is a folder"):
+        validate(bad)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ConfigError, match="scenario name is a folder"):
+        stage_dir(name, "scene")
+    assert list(tmp_path.rglob("*")) == []

@@ -16,6 +16,7 @@ from locoman.config.perception import PerceptionCfg
 from locoman.config.retarget import RetargetCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
+from locoman.stage import SCENARIO_NAME_RULE, valid_scenario_name
 
 
 @dataclass
@@ -212,6 +213,11 @@ class RootCfg:
 
     def check(self) -> list[tuple[str, str]]:
         errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]
+        errors += [
+            ("scenarios", f"{name!r}: {SCENARIO_NAME_RULE}")
+            for name in self.scenarios
+            if not valid_scenario_name(name)
+        ]
         if self.demos.scenario not in self.scenarios:
             errors.append(("demos.scenario", f"{self.demos.scenario!r} is not a scenario"))
         for name in self.perception.scenarios:
