@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from locoman.scene import g1
-from locoman.scene.plan_state import top_face
+from locoman.scene.plan_state import PlanState, top_face, world_pose
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.to.kinematics import pin_configuration, pin_velocity
 from locoman.to.layout import ObjectModel
@@ -223,13 +223,8 @@ def stance_slip(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
     return worst
 
 
-def fixed_pose(spec: dict) -> np.ndarray:
-    """World pose (4, 4) of an object where the scene puts it (an ``objects.json`` entry)."""
-    pose = np.eye(4)
-    mat = np.zeros(9)
-    mujoco.mju_quat2Mat(mat, np.asarray(spec["quat_wxyz"], dtype=float))
-    pose[:3, :3], pose[:3, 3] = mat.reshape(3, 3), spec["pos_m"]
-    return pose
+# The scene before any subtask: every object where the scene puts it.
+_AS_BUILT = PlanState(-1, {}, None)
 
 
 def support_under(
@@ -248,7 +243,8 @@ def support_under(
         if face is None:
             continue
         centre, half = face
-        local = np.linalg.solve(fixed_pose(spec), np.r_[bottom, 1.0])[:3] - centre
+        pose = world_pose(objects, _AS_BUILT, name)
+        local = np.linalg.solve(pose, np.r_[bottom, 1.0])[:3] - centre
         if abs(local[2]) <= height_tol_m and np.all(np.abs(local[:2]) <= half):
             return name
     return None
