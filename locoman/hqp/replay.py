@@ -175,10 +175,13 @@ def replay(
     log |= {name: np.zeros(n) for name in ("gripper_closed", "level1_residual", "hqp_step_s")}
     jac = np.zeros((6, model.nv))
     xdot_desired = np.c_[task.ee_vel, np.zeros((n, 3))]  # no angular velocity
-    # Views into MjData, made once: the loop below runs at 1 kHz.
+    # Views (into MjData and the Jacobian), made once: the loop below runs at 1 kHz.
     site_pos, site_rot = data.site_xpos[site], data.site_xmat[site].reshape(3, 3)
     cols = _consecutive(dadr)
-    qvel_all = data.qvel
+    jac_pos, jac_rot, jac_cols = jac[:3], jac[3:], jac[:, cols]
+    j = np.empty(jac_cols.shape)  # the arm and base columns, contiguous for DAQP
+    qvel = data.qvel[cols]
+    x_a = (site_pos, site_rot)
     feedback = cfg.measured_velocity_feedback
     with _gc_paused():
         start = time.perf_counter()
@@ -186,11 +189,9 @@ def replay(
             t = task.time_s[k]
             mujoco.mj_step1(model, data)
             tic = time.perf_counter()
-            mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
-            j = np.ascontiguousarray(jac[:, cols])
-            x_a = (site_pos, site_rot)
+            mujoco.mj_jacSite(model, data, jac_pos, jac_rot, site)
+            np.copyto(j, jac_cols)
             x_d = (task.ee_pos[k], rotation)
-            qvel = qvel_all[cols]
             xdot_a = j @ qvel if feedback else None
             qdot = hqp.step(j, x_d, xdot_desired[k], x_a, task.base[k], xdot_a)
             log["hqp_step_s"][k] = time.perf_counter() - tic

@@ -15,7 +15,7 @@ import numpy as np
 
 from locoman.errors import SolverError
 from locoman.hqp.limits import JointLimits, VelocityBox
-from locoman.hqp.tasks import arm_mid_range_task, base_pose_task, clik_task, wrap_angle
+from locoman.hqp.tasks import ClikTask, arm_mid_range_task, base_pose_task, wrap_angle
 
 Task = tuple[np.ndarray, np.ndarray]
 
@@ -119,7 +119,8 @@ class HierarchySolver:
         else:
             # sense resets DAQP's working set: a warm start changes the last bits of qdot,
             # which the replay's grasp amplifies into 5e-6 m of RMSE (measured).
-            self._model.update(f=f, A=a, bupper=self._upper, blower=self._lower, sense=self._sense)
+            # Positional (H unchanged): keyword parsing costs 0.7 us of a 30 us step.
+            self._model.update(None, f, a, self._upper, self._lower, self._sense)
         x, _, flag, _ = self._model.solve()
         if flag < 0:
             raise SolverError(f"DAQP failed on the hierarchical QP (exit flag {flag})")
@@ -136,6 +137,7 @@ class WholeBodyHqp:
     Attributes:
         q_star: (10,) integrated optimal configuration q* (base x, y, yaw, arm 1..7).
         qdot_star: (10,) optimal velocity of the last step qdot*.
+        last_level1: Level 1 (A, b) of the last step; overwritten by the next step.
     """
 
     def __init__(
@@ -164,21 +166,10 @@ class WholeBodyHqp:
         self._f = np.zeros(10)
         self._dq = np.zeros(10)
         self._box = VelocityBox(limits, dt)
+        self._clik = ClikTask(kp, kv)
         self.q_star = np.asarray(q0, dtype=float).copy()
         self.qdot_star = np.zeros(10)
         self.last_level1: Task | None = None
-
-    def _level1(
-        self,
-        jacobian: np.ndarray,
-        x_desired: tuple[np.ndarray, np.ndarray],
-        xdot_desired: np.ndarray,
-        x_actual: tuple[np.ndarray, np.ndarray],
-        xdot_actual: np.ndarray | None,
-    ) -> Task:
-        """Level 1, eq. (4), with the measured velocity only under the literal law."""
-        feedback = xdot_actual if self.measured_velocity_feedback else None
-        return clik_task(jacobian, x_desired, xdot_desired, x_actual, self.kp, self.kv, feedback)
 
     def levels(
         self,
@@ -190,7 +181,9 @@ class WholeBodyHqp:
         xdot_actual: np.ndarray | None = None,
     ) -> tuple[Task, Task]:
         """Level 1 (eq. (4)) and level 2 (eq. (6)) for the current state."""
-        level1 = self._level1(jacobian, x_desired, xdot_desired, x_actual, xdot_actual)
+        # Level 1 with the measured velocity only under the literal law.
+        feedback = xdot_actual if self.measured_velocity_feedback else None
+        level1 = ClikTask(self.kp, self.kv)(jacobian, x_desired, xdot_desired, x_actual, feedback)
         base = base_pose_task(q_base_desired, self.q_star[:3], self.level2_gain)
         arm = arm_mid_range_task(self.limits.arm_mid, self.q_star[3:], self.level2_gain)
         return level1, (np.vstack([base[0], arm[0]]), np.concatenate([base[1], arm[1]]))
@@ -205,7 +198,8 @@ class WholeBodyHqp:
         xdot_actual: np.ndarray | None = None,
     ) -> np.ndarray:
         """Solve the stack, integrate q* and return qdot* (10,)."""
-        level1 = self._level1(jacobian, x_desired, xdot_desired, x_actual, xdot_actual)
+        feedback = xdot_actual if self.measured_velocity_feedback else None
+        level1 = self._clik(jacobian, x_desired, xdot_desired, x_actual, feedback)
         # Level 2's rows are the identity (H_b, H_a stacked), so only its target
         # g (goal - q*) is needed, as f = -W target (see weighted_objective).
         self._goal[:3] = q_base_desired

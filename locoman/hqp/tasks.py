@@ -22,37 +22,50 @@ import numpy as np
 from locoman.scene.mobile_manipulator import rotation_error
 
 
-def clik_task(
-    jacobian: np.ndarray,
-    x_desired: np.ndarray,
-    xdot_desired: np.ndarray,
-    x_actual: np.ndarray,
-    kp: float,
-    kv: float,
-    xdot_actual: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Level 1, eq. (4): end-effector pose and velocity tracking.
+class ClikTask:
+    """Level 1, eq. (4): end-effector pose and velocity tracking, evaluated into buffers of
+    its own (it runs at 1 kHz): the b of a call is overwritten by the next call.
 
     Args:
-        jacobian: (6, n) end-effector Jacobian, world frame (linear rows, then angular).
-        x_desired: Desired pose as (position (3,) [m], rotation (3, 3)).
-        xdot_desired: (6,) desired linear [m/s] and angular [rad/s] velocity.
-        x_actual: Actual pose as (position, rotation).
         kp: Diagonal of K_p [1/s].
         kv: Diagonal of K_v [-].
-        xdot_actual: (6,) measured velocity for the literal law; ``None`` for feed-forward.
-
-    Returns:
-        (A, b) with A = J and b the commanded end-effector velocity.
     """
-    (p_d, r_d), (p_a, r_a) = x_desired, x_actual
-    b = np.empty(6)
-    np.subtract(p_d, p_a, out=b[:3])
-    rotation_error(r_d, r_a, out=b[3:])
-    b *= kp
-    velocity = xdot_desired if xdot_actual is None else xdot_desired - xdot_actual
-    b += kv * velocity
-    return jacobian, b
+
+    def __init__(self, kp: float, kv: float) -> None:
+        self.kp, self.kv = kp, kv
+        self._b = np.empty(6)
+        self._b_pos, self._b_rot = self._b[:3], self._b[3:]
+        self._velocity = np.empty(6)
+        rel = np.empty((3, 3))
+        self._work = (rel, rel.reshape(9), np.empty(4))
+
+    def __call__(
+        self,
+        jacobian: np.ndarray,
+        x_desired: tuple[np.ndarray, np.ndarray],
+        xdot_desired: np.ndarray,
+        x_actual: tuple[np.ndarray, np.ndarray],
+        xdot_actual: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(A, b) with A = J and b the commanded end-effector velocity.
+
+        Args:
+            jacobian: (6, n) end-effector Jacobian, world frame (linear rows, then angular).
+            x_desired: Desired pose as (position (3,) [m], rotation (3, 3)).
+            xdot_desired: (6,) desired linear [m/s] and angular [rad/s] velocity.
+            x_actual: Actual pose as (position, rotation).
+            xdot_actual: (6,) measured velocity for the literal law; ``None`` for
+                feed-forward.
+        """
+        (p_d, r_d), (p_a, r_a) = x_desired, x_actual
+        b = self._b
+        np.subtract(p_d, p_a, self._b_pos)
+        rotation_error(r_d, r_a, self._b_rot, self._work)
+        b *= self.kp
+        velocity = xdot_desired if xdot_actual is None else xdot_desired - xdot_actual
+        # K_v = 1 (the paper's) would multiply by one, which leaves every bit as it is.
+        b += velocity if self.kv == 1.0 else np.multiply(velocity, self.kv, self._velocity)
+        return jacobian, b
 
 
 _H_B = np.eye(3, 10)
