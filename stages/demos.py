@@ -12,9 +12,9 @@ import numpy as np
 
 from locoman.artifacts import write_json_atomic, write_npz
 from locoman.config import load_params
-from locoman.kmp.demos import select_demos, synthetic_demos, task_points
+from locoman.kmp.demos import task_points
 from locoman.kmp.io import DEMOS
-from locoman.kmp.mocap_csv import load_demo_dir
+from locoman.kmp.sources import collect_demos
 from locoman.scene.io import load_objects, load_plan
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
@@ -24,11 +24,7 @@ def main() -> None:
     d = cfg.demos
     scene = DATA_DIR / d.scenario / "scene"
     _, task = task_points(load_objects(scene), load_plan(scene), d.grasp_height)
-    if d.source == "synthetic":
-        demos, selected, miss = synthetic_demos(d, task, cfg.seed)
-    else:
-        demos = load_demo_dir(d.csv_dir, d.rate_hz, d.duration_s)
-        selected, miss = select_demos(demos, task, d.grasp_time_s, min(d.n_selected, len(miss)))
+    demos, selected, miss = collect_demos(d, task, cfg.seed)
     out = stage_dir(d.scenario, "demos")
     write_npz(
         out / "demos.npz",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 import yaml
 
@@ -91,3 +93,39 @@ def test_a_scenario_name_that_is_a_path_is_refused(raw, name, tmp_path, monkeypa
     with pytest.raises(ConfigError, match="scenario name is a folder"):
         stage_dir(name, "scene")
     assert list(tmp_path.rglob("*")) == []
+
+
+NON_FINITE_KEYS = [
+    ("scenario", "initial_yaw"),
+    ("scenarios", "tiny", "start", "yaw"),
+    ("scenarios", "tiny", "start", "xy", 0),
+    ("scenarios", "tiny", "objects", "box", "pos", 1),
+    ("scenarios", "tiny", "objects", "box", "size", 2),
+    ("solve", "contact", "floor_friction"),
+    ("solve", "solver", "tolerance"),
+    ("evaluate", "goal_tol_m"),
+    ("retarget", "com_margin_m"),
+    ("hqp", "kp"),
+]
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), float("-inf")])
+@pytest.mark.parametrize("path", NON_FINITE_KEYS, ids=lambda p: ".".join(map(str, p)))
+def test_a_number_that_is_not_finite_is_refused_naming_its_key(raw, path, value):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    node = bad
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    name = ".".join(f"[{k}]" if isinstance(k, int) else k for k in path).replace(".[", "[")
+    with pytest.raises(ConfigError, match=re.escape(name)):
+        validate(bad)
+
+
+def test_nan_leaves_a_via_point_output_free(raw):
+    ok = yaml.safe_load(yaml.safe_dump(raw))
+    ok["kmp"]["cases"]["replica"]["via_points"][0]["wrist_vel"] = [float("nan"), 0.1, 0.0]
+    validate(ok)
+    ok["kmp"]["cases"]["replica"]["via_points"][0]["wrist_vel"][0] = float("inf")
+    with pytest.raises(ConfigError, match=r"via_points\[0\]\.wrist_vel\[0\]"):
+        validate(ok)

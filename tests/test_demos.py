@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
+import yaml
 
 from locoman.config import load_params
 from locoman.errors import DemoError
 from locoman.kmp.demos import TaskPoints, synthetic_demos
 from locoman.kmp.mocap_csv import COLUMNS, load_demo_dir, read_demo_csv, write_demo_csv
+from locoman.kmp.sources import collect_demos
 
 TASK = TaskPoints(np.array([3.687, 0.423, 0.823]), np.array([3.73, 0.97, 0.828]))
 
@@ -82,3 +86,57 @@ def test_missing_header_column_is_named(tmp_path):
 def test_empty_folder_is_refused(tmp_path):
     with pytest.raises(DemoError, match="no demonstration files"):
         load_demo_dir(tmp_path, 100.0, 26.0)
+
+
+def _recorded(folder, cfg, count, scale=1.0):
+    demos, *_ = synthetic_demos(cfg, TASK, seed=2)
+    folder.mkdir(exist_ok=True)
+    for m in range(count):
+        write_demo_csv(
+            folder / f"demo_{m}.csv", demos.time_s, scale * demos.wrist_pos[m], demos.pelvis[m]
+        )
+    return demos
+
+
+def test_recorded_demos_are_selected_like_synthetic_ones(tmp_path, cfg):
+    """source=csv with the project's own CSV files (it once failed with UnboundLocalError)."""
+    demos = _recorded(tmp_path / "rec", cfg, 7)
+    recorded = dataclasses.replace(cfg, source="csv", csv_dir=str(tmp_path / "rec"))
+    loaded, selected, miss = collect_demos(recorded, TASK, seed=0)
+    assert loaded.wrist_pos.shape[0] == 7 and len(selected) == cfg.n_selected
+    k = int(np.argmin(np.abs(demos.time_s - cfg.grasp_time_s)))
+    expected = np.linalg.norm(demos.wrist_pos[:7, k] - TASK.grasp, axis=1)
+    np.testing.assert_allclose(miss, expected, atol=1e-6)
+    assert np.all(miss[selected] <= np.delete(miss, selected).min())
+
+
+def test_fewer_recordings_than_selected_are_refused(tmp_path, cfg):
+    _recorded(tmp_path / "rec", cfg, cfg.n_selected - 1)
+    recorded = dataclasses.replace(cfg, source="csv", csv_dir=str(tmp_path / "rec"))
+    with pytest.raises(DemoError, match="n_selected"):
+        collect_demos(recorded, TASK, seed=0)
+
+
+def test_millimetres_are_refused_where_the_data_enters(tmp_path, cfg):
+    _recorded(tmp_path / "rec", cfg, 2, scale=1000.0)
+    with pytest.raises(DemoError, match="wrist_x.*metres"):
+        load_demo_dir(tmp_path / "rec", 100.0, 26.0)
+
+
+def test_a_binary_file_is_refused_with_a_message(tmp_path):
+    (tmp_path / "d.csv").write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(DemoError, match="not a text CSV"):
+        read_demo_csv(tmp_path / "d.csv")
+
+
+@pytest.mark.parametrize("folder", ["/home/me/mocap", "../mocap", "", "data/../../x"])
+def test_the_recordings_folder_must_be_inside_the_repository(cfg, folder):
+    errors = dict(dataclasses.replace(cfg, source="csv", csv_dir=folder).check())
+    assert "csv_dir" in errors
+
+
+def test_the_demos_stage_depends_on_the_recordings_folder(repo, cfg):
+    """Editing a recording reruns the stage: the folder is one of its DVC dependencies."""
+    stage = yaml.safe_load((repo / "dvc.yaml").read_text())["stages"]["demos"]
+    assert "${demos.csv_dir}" in stage["deps"]
+    assert (repo / cfg.csv_dir).is_dir()

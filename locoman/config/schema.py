@@ -6,6 +6,7 @@ wrong key, type or value fails at start-up with the key's full path.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -229,19 +230,30 @@ class RootCfg:
         return errors
 
 
-def walk_checks(node: Any, path: str = "") -> list[tuple[str, str]]:
-    """Run every ``check()`` in a config tree; return (full key path, message) pairs."""
+def walk_checks(node: Any, path: str = "", nan_free: bool = False) -> list[tuple[str, str]]:
+    """Run every ``check()`` in a config tree and refuse every number that is not finite;
+    return (full key path, message) pairs.
+
+    A field named in its dataclass's ``NAN_MEANS_FREE`` may hold NaN (an unconstrained
+    entry), never an infinity.
+    """
+    if isinstance(node, float) and not math.isfinite(node):
+        if not (nan_free and math.isnan(node)):
+            return [(path, f"must be a finite number, got {node}")]
+        return []
     errors: list[tuple[str, str]] = []
     if hasattr(node, "check"):
         errors += [(f"{path}.{key}" if path else key, msg) for key, msg in node.check()]
     children: dict[str, Any] = {}
+    free: tuple[str, ...] = ()
     if hasattr(node, "__dataclass_fields__"):
         children = {name: getattr(node, name) for name in node.__dataclass_fields__}
+        free = getattr(node, "NAN_MEANS_FREE", ())
     elif isinstance(node, dict):
         children = {str(k): v for k, v in node.items()}
     elif isinstance(node, list):
         children = {f"[{i}]": v for i, v in enumerate(node)}
     for key, child in children.items():
         sub = f"{path}{key}" if key.startswith("[") else (f"{path}.{key}" if path else key)
-        errors += walk_checks(child, sub)
+        errors += walk_checks(child, sub, key in free or (nan_free and key.startswith("[")))
     return errors

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import PurePosixPath
+from typing import ClassVar
 
 from omegaconf import MISSING
 
@@ -26,7 +28,8 @@ class DemosCfg:
     Attributes:
         source: ``synthetic`` (generated here) or ``csv`` (recorded files in ``csv_dir``).
         csv_dir: Folder of recorded demonstrations (``*.csv``, layout in
-            :mod:`locoman.kmp.mocap_csv`), relative to the repository root.
+            :mod:`locoman.kmp.mocap_csv`), relative to the repository root and inside it:
+            the ``demos`` stage depends on it, so DVC reruns it when a recording changes.
         scenario: The scenario holding the bottle, the table and the place target.
         rate_hz: Sampling rate [Hz] (paper: 100).
         duration_s: Length of every demonstration [s] (paper: 26).
@@ -52,7 +55,7 @@ class DemosCfg:
     """
 
     source: str = "synthetic"
-    csv_dir: str | None = None
+    csv_dir: str = "data/mm_pick_place/recorded"
     scenario: str = "mm_pick_place"
     rate_hz: float = 100.0
     duration_s: float = 26.0
@@ -79,8 +82,16 @@ class DemosCfg:
         errors = []
         if self.source not in ("synthetic", "csv"):
             errors.append(("source", f"must be synthetic or csv, got {self.source!r}"))
-        if self.source == "csv" and not self.csv_dir:
-            errors.append(("csv_dir", "source csv needs the folder of recorded files"))
+        folder = PurePosixPath(self.csv_dir or "")
+        if not self.csv_dir or folder.is_absolute() or ".." in folder.parts:
+            errors.append(
+                (
+                    "csv_dir",
+                    f"must be a folder inside the repository, relative to its root, got "
+                    f"{self.csv_dir!r}: copy the recordings into e.g. "
+                    f"data/{self.scenario}/recorded/ so that DVC tracks them",
+                )
+            )
         if not 10.0 <= self.rate_hz <= 1000.0:
             errors.append(("rate_hz", f"must be in [10, 1000] Hz, got {self.rate_hz}"))
         if not 0 < self.n_selected <= self.n_recorded:
@@ -124,6 +135,9 @@ class ViaPointCfg:
         wrist_vel_variance: Same for the wrist velocity [(m/s)^2].
         pelvis_variance: Same for the pelvis (x, y [m^2], yaw [rad^2]).
     """
+
+    # An entry NaN leaves that one output free, as ``null`` leaves the whole group.
+    NAN_MEANS_FREE: ClassVar[tuple[str, ...]] = ("wrist_pos", "wrist_vel", "pelvis")
 
     time_s: float = MISSING
     wrist_pos: list[float] | None = None

@@ -54,8 +54,11 @@ def read_demo_csv(path: str | Path) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise DemoError(f"demo file {path} does not exist")
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except (UnicodeDecodeError, csv.Error) as err:
+        raise DemoError(f"demo file {path} is not a text CSV file ({err})") from None
     if not rows:
         raise DemoError(f"demo file {path} is empty; expected a header with {list(COLUMNS)}")
     header = [h.strip() for h in rows[0]]
@@ -99,7 +102,8 @@ def load_demo_dir(folder: str | Path, rate_hz: float, duration_s: float) -> Demo
     """All ``*.csv`` demonstrations in ``folder`` (sorted by name) on a common grid.
 
     Raises:
-        DemoError: The folder holds no CSV file, or a file is malformed.
+        DemoError: The folder holds no CSV file, or a file is malformed or implausible
+            (:func:`check_plausible`).
     """
     files = sorted(Path(folder).glob("*.csv"))
     if not files:
@@ -113,10 +117,40 @@ def load_demo_dir(folder: str | Path, rate_hz: float, duration_s: float) -> Demo
         quat = np.stack([cols[f"pelvis_{q}"] for q in QUAT], axis=1)
         pelvis = np.c_[cols["pelvis_x"], cols["pelvis_y"], np.unwrap(yaw_from_quat_wxyz(quat))]
         wrist_vel = np.gradient(wrist, ts, axis=0)
+        check_plausible(f, cols, wrist_vel)
         pos.append(_resample(t, ts, wrist))
         vel.append(np.where((t <= ts[-1])[:, None], _resample(t, ts, wrist_vel), 0.0))
         pel.append(_resample(t, ts, pelvis))
     return Demos(t, np.stack(pos), np.stack(vel), np.stack(pel))
+
+
+# What a person's recorded motion stays within; a file beyond it is in other units or
+# another frame (millimetres give positions of thousands and speeds of hundreds).
+WORKSPACE_M = 50.0  # |x|, |y|, |z| of the wrist and the pelvis [m]
+WRIST_SPEED_MAX_MPS = 10.0  # [m/s]; a fast human reach peaks near 5
+
+
+def check_plausible(path: Path, cols: dict[str, np.ndarray], wrist_vel: np.ndarray) -> None:
+    """Refuse a recording whose positions or speeds no person makes in metres and seconds.
+
+    Raises:
+        DemoError: Naming the file, the column and the value.
+    """
+    for name in ("wrist_x", "wrist_y", "wrist_z", "pelvis_x", "pelvis_y", "pelvis_z"):
+        worst = float(np.max(np.abs(cols[name])))
+        if worst > WORKSPACE_M:
+            raise DemoError(
+                f"demo file {path}, column {name!r}: a value of {worst:g} lies beyond the "
+                f"{WORKSPACE_M:g} m workspace; positions must be in metres (millimetres? "
+                "divide by 1000)"
+            )
+    speed = float(np.max(np.linalg.norm(wrist_vel, axis=1)))
+    if speed > WRIST_SPEED_MAX_MPS:
+        raise DemoError(
+            f"demo file {path}: the wrist moves at up to {speed:g} m/s, faster than "
+            f"{WRIST_SPEED_MAX_MPS:g} m/s; check that time_s is in seconds and positions in "
+            "metres"
+        )
 
 
 def _resample(t: np.ndarray, ts: np.ndarray, values: np.ndarray) -> np.ndarray:
