@@ -119,7 +119,7 @@ def test_fewer_recordings_than_selected_are_refused(tmp_path, cfg):
 
 def test_millimetres_are_refused_where_the_data_enters(tmp_path, cfg):
     _recorded(tmp_path / "rec", cfg, 2, scale=1000.0)
-    with pytest.raises(DemoError, match="wrist_x.*metres"):
+    with pytest.raises(DemoError, match=r"wrist_x.*metres"):
         load_demo_dir(tmp_path / "rec", 100.0, 26.0)
 
 
