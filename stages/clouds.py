@@ -7,23 +7,26 @@ masks/, writes data/<scenario>/clouds/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.config import load_params
 from locoman.perception.clouds import clouds_scenario
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
+    out = stage_dir(scenario, "clouds")
     clouds_scenario(
         scenario,
         DATA_DIR / scenario / "generate",
         DATA_DIR / scenario / "masks",
-        stage_dir(scenario, "clouds"),
+        out,
         cfg.perception.clouds,
         cfg.perception.depth_error,
         cfg.seed,
     )
+    return out
 
 
 if __name__ == "__main__":

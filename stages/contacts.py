@@ -8,14 +8,16 @@ generate/, masks/ and clouds/, writes data/<scenario>/contacts/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.config import load_params
 from locoman.contact.pipeline import contacts_scenario
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
+    out = stage_dir(scenario, "contacts")
     root = DATA_DIR / scenario
     contacts_scenario(
         scenario,
@@ -23,10 +25,11 @@ def main(scenario: str) -> None:
         root / "generate",
         root / "masks",
         root / "clouds",
-        stage_dir(scenario, "contacts"),
+        out,
         cfg.contacts,
         cfg.seed,
     )
+    return out
 
 
 if __name__ == "__main__":

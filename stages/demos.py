@@ -7,6 +7,7 @@ writes data/<demos.scenario>/demos/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from locoman.scene.io import load_objects, load_plan
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main() -> None:
+def main() -> Path:
     cfg = load_params()
     d = cfg.demos
     scene = DATA_DIR / d.scenario / "scene"
@@ -53,6 +54,7 @@ def main() -> None:
             "grasp_speed_mean_mps": float(speed.mean()),
         },
     )
+    return out
 
 
 if __name__ == "__main__":

@@ -7,16 +7,19 @@ solve/, writes data/<scenario>/evaluate/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.config import load_params
 from locoman.sim.pipeline import evaluate_scenario
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
+    out = stage_dir(scenario, "evaluate")
     root = DATA_DIR / scenario
-    evaluate_scenario(root / "scene", root / "solve", stage_dir(scenario, "evaluate"), cfg.evaluate)
+    evaluate_scenario(root / "scene", root / "solve", out, cfg.evaluate)
+    return out
 
 
 if __name__ == "__main__":

@@ -7,21 +7,24 @@ writes data/<scenario>/generate/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.config import load_params
 from locoman.perception.generate import generate_scenario
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
+    out = stage_dir(scenario, "generate")
     generate_scenario(
         scenario,
         DATA_DIR / scenario / "scene",
-        stage_dir(scenario, "generate"),
+        out,
         cfg.perception.generate,
         cfg.seed,
     )
+    return out
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ kmp_fit/, writes data/<demos.scenario>/hqp_replay/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -22,7 +23,7 @@ from locoman.scene.io import load_objects, load_plan, load_scene_model, load_sta
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main() -> None:
+def main() -> Path:
     cfg = load_params()
     d, h = cfg.demos, cfg.hqp
     root = DATA_DIR / d.scenario
@@ -60,6 +61,7 @@ def main() -> None:
         )
     write_metrics(out, metrics)
     write_text_atomic(out / "results.md", results_table(metrics))
+    return out
 
 
 if __name__ == "__main__":

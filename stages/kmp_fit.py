@@ -7,6 +7,7 @@ writes data/<demos.scenario>/kmp_fit/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from locoman.stage import DATA_DIR, run_stage, stage_dir
 PLOT_RATE_HZ = 100.0
 
 
-def main() -> None:
+def main() -> Path:
     cfg = load_params()
     d, k = cfg.demos, cfg.kmp
     root = DATA_DIR / d.scenario
@@ -78,6 +79,7 @@ def main() -> None:
         "predict_seconds_26s_at_1khz": predict_seconds(ref, k, duration),
     }
     write_metrics(out, metrics)
+    return out
 
 
 if __name__ == "__main__":

@@ -7,21 +7,24 @@ writes data/<scenario>/masks/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.config import load_params
 from locoman.perception.masks import masks_scenario
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
+    out = stage_dir(scenario, "masks")
     masks_scenario(
         scenario,
         DATA_DIR / scenario / "generate",
-        stage_dir(scenario, "masks"),
+        out,
         cfg.perception.masks,
         cfg.seed,
     )
+    return out
 
 
 if __name__ == "__main__":

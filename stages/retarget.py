@@ -8,14 +8,16 @@ generate/, masks/ and contacts/, writes data/<scenario>/retarget/)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.config import load_params
 from locoman.retarget.pipeline import retarget_scenario
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
+    out = stage_dir(scenario, "retarget")
     root = DATA_DIR / scenario
     retarget_scenario(
         scenario,
@@ -23,9 +25,10 @@ def main(scenario: str) -> None:
         root / "generate",
         root / "masks",
         root / "contacts",
-        stage_dir(scenario, "retarget"),
+        out,
         cfg.retarget,
     )
+    return out
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ Usage: python stages/scene.py <scenario>   (reads params.yaml, writes data/<scen
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from locoman.artifacts import write_json_atomic, write_png
 from locoman.config import load_params
@@ -17,7 +18,7 @@ from locoman.scene.render import render_camera
 from locoman.stage import run_stage, stage_dir
 
 
-def main(scenario: str) -> None:
+def main(scenario: str) -> Path:
     cfg = load_params()
     sc = cfg.scenarios.get(scenario)
     if sc is None:
@@ -42,6 +43,7 @@ def main(scenario: str) -> None:
             "settle_displacement_max_m": max(report.settle_displacement_m.values(), default=0.0),
         },
     )
+    return out
 
 
 if __name__ == "__main__":

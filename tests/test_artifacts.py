@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from locoman.artifacts import ArtifactSchema, Field, read_json, read_npz, write_json, write_npz
 from locoman.artifacts.mcap_io import read_json_messages, write_frame_transforms
 from locoman.errors import ArtifactError
+from locoman.scene.io import OBJECTS_FILE, PLAN_FILE, load_objects, load_plan
 
 TRAJ = ArtifactSchema(
     "test.trajectory",
@@ -102,6 +105,37 @@ def test_json_round_trip_and_type_check(tmp_path):
     assert read_json(path, PLAN) == {"steps": [1, 2], "robot": "g1"}
     with pytest.raises(ArtifactError, match="field 'robot' is a int, expected str"):
         write_json(path, PLAN, {"steps": [], "robot": 3})
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d["objects"]["box"].pop("size_m"), r"entry 'box': key 'size_m' is missing"),
+        (
+            lambda d: d["objects"]["box"].update(mass_kg="heavy"),
+            r"entry 'box': 'mass_kg' is a str, expected number\?",
+        ),
+        (lambda d: d["objects"].update(box=[1, 2]), r"entry 'box' is a list, expected object"),
+        (lambda d: d["objects"]["box"].update(movable=1), r"'movable' is a int, expected bool"),
+    ],
+)
+def test_a_nested_json_field_missing_or_mistyped_is_named(repo, tmp_path, edit, message):
+    """A hand-edited objects.json fails on read with the entry and key, not a KeyError
+    deep in a stage."""
+    scene = repo / "data" / "tiny" / "scene"
+    data = json.loads((scene / OBJECTS_FILE).read_text())
+    edit(data)
+    (tmp_path / OBJECTS_FILE).write_text(json.dumps(data))
+    with pytest.raises(ArtifactError, match=message):
+        load_objects(tmp_path)
+
+
+def test_a_plan_subtask_without_a_predicate_is_named(repo, tmp_path):
+    data = json.loads((repo / "data" / "tiny" / "scene" / PLAN_FILE).read_text())
+    del data["subtasks"][1]["predicate"]
+    (tmp_path / PLAN_FILE).write_text(json.dumps(data))
+    with pytest.raises(ArtifactError, match=r"entry 1: key 'predicate' is missing"):
+        load_plan(tmp_path)
 
 
 def test_frame_transforms_mcap_round_trip(tmp_path):

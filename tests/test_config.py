@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 
 import pytest
 import yaml
@@ -129,3 +130,18 @@ def test_nan_leaves_a_via_point_output_free(raw):
     ok["kmp"]["cases"]["replica"]["via_points"][0]["wrist_vel"][0] = float("inf")
     with pytest.raises(ConfigError, match=r"via_points\[0\]\.wrist_vel\[0\]"):
         validate(ok)
+
+
+def test_a_renamed_key_is_a_message_not_a_traceback(repo, tmp_path):
+    """conf/ with scenario.box_mass renamed: the scenarios' ${scenario.box_mass} dangles."""
+    shutil.copytree(repo / "conf", tmp_path / "conf")
+    config = tmp_path / "conf" / "config.yaml"
+    config.write_text(config.read_text().replace("box_mass:", "mass_of_box:"))
+    with pytest.raises(ConfigError, match=r"box_mass"):
+        compose_text([], conf_dir=tmp_path / "conf")
+
+
+def test_a_misspelt_override_is_a_message(repo, monkeypatch):
+    monkeypatch.chdir(repo)
+    with pytest.raises(ConfigError, match=r"box_mas"):
+        compose_text(["scenario.box_mas=2.5"])

@@ -26,6 +26,8 @@ class Field:
         shape: Array shape; ints are fixed sizes, strings are symbols. Empty for JSON fields.
         unit: SI unit, ``-`` when dimensionless, ``mixed`` when the doc says per entry.
         doc: What the field holds.
+        items: For a JSON ``object`` (each value) or ``list`` (each element): the keys every
+            entry must hold, with their JSON types (a ``?`` suffix allows null).
     """
 
     name: str
@@ -33,6 +35,7 @@ class Field:
     shape: tuple[int | str, ...] = ()
     unit: str = "-"
     doc: str = ""
+    items: tuple[tuple[str, str], ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,13 +95,41 @@ class ArtifactSchema:
         extra = sorted(set(data) - {f.name for f in self.fields})
         if extra:
             raise self.error(path, f"unexpected fields {extra}")
-        types = {"object": dict, "list": list, "str": str, "number": (int, float), "bool": bool}
         for f in self.fields:
             if f.name not in data:
                 raise self.error(path, f"field {f.name!r} is missing")
-            if not isinstance(data[f.name], types[f.dtype]):
+            if not _json_type_ok(data[f.name], f.dtype):
                 got = type(data[f.name]).__name__
                 raise self.error(path, f"field {f.name!r} is a {got}, expected {f.dtype}")
+            if not f.items:
+                continue
+            value = data[f.name]
+            entries = value.items() if isinstance(value, dict) else enumerate(value)
+            for key, entry in entries:
+                where = f"field {f.name!r}, entry {key!r}"
+                if not isinstance(entry, dict):
+                    raise self.error(path, f"{where} is a {type(entry).__name__}, expected object")
+                for item, dtype in f.items:
+                    if item not in entry:
+                        raise self.error(path, f"{where}: key {item!r} is missing")
+                    if not _json_type_ok(entry[item], dtype):
+                        got = type(entry[item]).__name__
+                        raise self.error(path, f"{where}: {item!r} is a {got}, expected {dtype}")
+
+
+_JSON_TYPES = {"object": dict, "list": list, "str": str, "bool": bool, "int": int}
+
+
+def _json_type_ok(value: Any, dtype: str) -> bool:
+    """``value`` has JSON type ``dtype`` (``number``: int or float, not bool; a ``?``
+    suffix: or null)."""
+    if dtype.endswith("?"):
+        return value is None or _json_type_ok(value, dtype[:-1])
+    if isinstance(value, bool):
+        return dtype == "bool"
+    if dtype == "number":
+        return isinstance(value, int | float)
+    return isinstance(value, _JSON_TYPES[dtype])
 
 
 def _dtype_ok(got: np.dtype, want: str) -> bool:

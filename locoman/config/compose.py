@@ -13,6 +13,8 @@ from pathlib import Path
 
 import yaml
 from dvc.utils.hydra import compose_and_dump
+from hydra.errors import HydraException
+from omegaconf.errors import OmegaConfBaseException
 
 from locoman.artifacts.io import write_text_atomic
 from locoman.config.load import validate
@@ -25,7 +27,16 @@ def compose_text(overrides: list[str], conf_dir: Path = CONF_DIR) -> str:
     """The composed ``params.yaml`` text, validated against the typed schema."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "params.yaml"
-        compose_and_dump(str(out), str(conf_dir.resolve()), None, "config", "", overrides)
+        try:
+            compose_and_dump(str(out), str(conf_dir.resolve()), None, "config", "", overrides)
+        except (HydraException, OmegaConfBaseException) as exc:
+            # Hydra's own traceback runs to 30 frames; its first line names the key.
+            cause = exc.__cause__ if isinstance(exc.__cause__, OmegaConfBaseException) else exc
+            first = str(cause).strip().splitlines()[0] if str(cause).strip() else type(cause)
+            raise ConfigError(
+                f"cannot compose {conf_dir}/ with overrides {overrides}: {first}. A key that "
+                "an interpolation ${...} or an override names must exist in conf/."
+            ) from None
         text = out.read_text()
     validate(yaml.safe_load(text))
     return text

@@ -30,6 +30,19 @@ OBJECTS = ArtifactSchema(
             "object",
             doc="name -> kind, size_m, pos_m, quat_wxyz, mass_kg, movable, rgba, "
             "friction, primitives, contact_patches (object frame, [m])",
+            items=(
+                ("kind", "str"),
+                ("size_m", "list"),
+                ("pos_m", "list"),
+                ("yaw_rad", "number"),
+                ("quat_wxyz", "list"),
+                ("mass_kg", "number?"),
+                ("movable", "bool"),
+                ("rgba", "list"),
+                ("friction", "number"),
+                ("primitives", "list"),
+                ("contact_patches", "list"),
+            ),
         ),
     ),
 )
@@ -40,7 +53,19 @@ PLAN = ArtifactSchema(
     (
         Field("robot", "str", doc="g1 or mobile_manipulator"),
         Field("description", "str"),
-        Field("subtasks", "list", doc="ordered: prompt, predicate, object, contacts, target"),
+        Field(
+            "subtasks",
+            "list",
+            doc="ordered: prompt, predicate, object, contacts, target",
+            items=(
+                ("index", "int"),
+                ("prompt", "str"),
+                ("predicate", "str"),
+                ("object", "str"),
+                ("contacts", "list"),
+                ("target", "object?"),
+            ),
+        ),
     ),
 )
 STATE = ArtifactSchema(

@@ -1,0 +1,78 @@
+"""A stage's outputs appear whole or not at all, and every stage ends with one line."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from locoman import stage
+from locoman.errors import ArtifactError
+
+
+@pytest.fixture()
+def data(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(stage, "DATA_DIR", tmp_path / "data")
+    final = tmp_path / "data" / "demo" / "solve"
+    final.mkdir(parents=True)
+    (final / "trajectory.npz").write_text("old trajectory")
+    (final / "metrics.json").write_text('{"success": true}')
+    (final / ".gitignore").write_text("/trajectory.npz\n")
+    return final
+
+
+def test_a_failed_stage_leaves_the_previous_outputs_as_they_were(data, capsys):
+    def main(scenario):
+        out = stage.stage_dir(scenario, "solve")
+        (out / "trajectory.npz").write_text("half of a new trajectory")
+        raise ArtifactError("the contacts of subtask 2 lack left_hand")
+
+    with pytest.raises(SystemExit) as exit_:
+        stage.run_stage(main, ["demo"])
+    assert exit_.value.code == 2
+    assert (data / "trajectory.npz").read_text() == "old trajectory"
+    assert sorted(p.name for p in data.parent.iterdir()) == ["solve"]  # no staging left
+    assert "left as they were" in capsys.readouterr().err
+
+
+def test_a_crash_leaves_the_previous_outputs_too(data):
+    def main(scenario):
+        (stage.stage_dir(scenario, "solve") / "metrics.json").write_text("{")
+        raise KeyError("a bug")
+
+    with pytest.raises(KeyError):
+        stage.run_stage(main, ["demo"])
+    assert json.loads((data / "metrics.json").read_text()) == {"success": True}
+
+
+def test_a_stage_that_succeeds_leaves_exactly_its_new_outputs(data, capsys):
+    def main(scenario):
+        out = stage.stage_dir(scenario, "solve")
+        (out / "plots").mkdir()
+        (out / "plots" / "penetration.csv").write_text("node,m\n")
+        (out / "metrics.json").write_text('{"success": false, "status": "Maximum_Iterations"}')
+        return out
+
+    stage.run_stage(main, ["demo"])
+    files = sorted(str(p.relative_to(data)) for p in data.rglob("*") if p.is_file())
+    assert files == [".gitignore", "metrics.json", "plots/penetration.csv"]  # old npz gone
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("[test_stage_outputs demo] wrote ")
+    assert "data/demo/solve/ (2 files" in line
+    assert "checks FAILED: success (Maximum_Iterations)" in line
+
+
+@pytest.mark.parametrize(
+    ("metrics", "expected"),
+    [
+        ({"success": True, "failed_checks": []}, "checks passed"),
+        ({"success": False, "failed_checks": ["max_penetration"]}, "max_penetration"),
+        ({"replica": {"success": True}, "generalisation": {"success": False}}, "generalisation"),
+        ({"unreachable_contacts": 4, "self_collision_pairs": 0}, "unreachable_contacts = 4"),
+        ({"n_geoms": 12}, "checks passed"),
+    ],
+)
+def test_the_verdict_reads_every_check_of_the_metrics(metrics, expected):
+    assert expected in stage.verdict(metrics)
+    assert ("FAILED" in stage.verdict(metrics)) == (expected != "checks passed")
