@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import shutil
 
 import mujoco
 import numpy as np
@@ -92,3 +93,15 @@ def test_unreachable_arm_start_is_reported():
     model = mobile_manipulator.mobile_manipulator_mjspec().compile()
     with pytest.raises(SceneError, match="reach"):
         mobile_manipulator.start_qpos(model, np.zeros(3), np.array([3.0, 0.0, 1.0]))
+
+
+def test_the_scene_mjcf_holds_no_path_of_this_checkout(repo, tmp_path):
+    """scene.xml names its meshes by package, so it loads from a copy in another folder
+    (DVC's experiment copies have no .venv)."""
+    scene = repo / "data" / "tiny" / "scene"
+    text = (scene / "scene.xml").read_text()
+    assert ".venv" not in text and str(repo) not in text
+    assert 'meshdir="package://example-robot-data/robots/"' in text
+    copy = tmp_path / "elsewhere" / "scene"
+    shutil.copytree(scene, copy)
+    assert load_scene_model(copy).nmesh == load_scene_model(scene).nmesh > 0

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from locoman.config.perception import SimViewCfg
-from locoman.errors import ArtifactError, SceneError
+from locoman.errors import SceneError
 from locoman.perception import camera
 from locoman.perception.render_backend import (
     MIN_OBJECT_PIXELS,
@@ -23,7 +23,7 @@ from locoman.perception.render_backend import (
     render_rgbd,
 )
 from locoman.scene import g1
-from locoman.scene.io import MJCF_FILE
+from locoman.scene.io import load_scene_spec
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,9 +89,6 @@ def render_sim_view(
         SceneError: When the object is hidden or out of view, or must move and cannot.
     """
     scene_dir = Path(scene_dir)
-    path = scene_dir / MJCF_FILE
-    if not path.is_file():
-        raise ArtifactError(f"scene MJCF {path} is missing (rerun `dvc repro scene`)")
     centre_obj, radius = bounding_sphere(obj)
     target = camera.transform(centre_obj[None], T_obj)[0]
     az, el = np.deg2rad(cfg.azimuth_deg), np.deg2rad(cfg.elevation_deg)
@@ -101,7 +98,7 @@ def render_sim_view(
     distance = radius / np.tan(0.5 * fovy * cfg.fill)
     T_cam = camera.look_at(target + distance * bearing, target)
 
-    spec = mujoco.MjSpec.from_file(str(path))
+    spec = load_scene_spec(scene_dir)
     spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, cfg.width)
     spec.visual.global_.offheight = max(spec.visual.global_.offheight, cfg.height)
     spec.worldbody.add_camera(

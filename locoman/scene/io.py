@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,8 @@ MJCF_FILE = "scene.xml"
 OBJECTS_FILE = "objects.json"
 PLAN_FILE = "plan.json"
 STATE_FILE = "initial_state.npz"
+# How scene.xml names its meshes' folder; resolved when it is loaded.
+MESHDIR = "package://example-robot-data/robots/"
 
 OBJECTS = ArtifactSchema(
     "scene.objects",
@@ -90,8 +91,10 @@ STATE = ArtifactSchema(
 def write_scene(out_dir: str | Path, scene: Scene) -> tuple[mujoco.MjModel, np.ndarray]:
     """Write MJCF, object table, plan and initial state; return the model and home ``qpos``.
 
-    The MJCF's ``meshdir`` is made relative to ``out_dir``, so the file has no absolute path
-    and opens in any MuJoCo viewer from a checkout with its ``.venv``.
+    The MJCF names its meshes' folder as ``package://example-robot-data/robots/`` (the URDFs'
+    convention), not as a path: no path of this checkout or its virtual environment is
+    stored, so the file is the same in every checkout, DVC's experiment copies included.
+    :func:`load_scene_spec` resolves it in the running environment.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -101,8 +104,7 @@ def write_scene(out_dir: str | Path, scene: Scene) -> tuple[mujoco.MjModel, np.n
     xml = scene.spec.to_xml()
     if absolute not in xml:
         raise ArtifactError(f"MJCF of {scene.spec.modelname!r} lacks {absolute}; cannot relocate")
-    relative = os.path.relpath(assets.robots_dir(), out.resolve())
-    write_text_atomic(out / MJCF_FILE, xml.replace(absolute, f'meshdir="{relative}"'))
+    write_text_atomic(out / MJCF_FILE, xml.replace(absolute, f'meshdir="{MESHDIR}"'))
     write_json(out / OBJECTS_FILE, OBJECTS, {"objects": scene.objects})
     write_json(out / PLAN_FILE, PLAN, scene.plan)
     data = mujoco.MjData(model)
@@ -121,18 +123,39 @@ def write_scene(out_dir: str | Path, scene: Scene) -> tuple[mujoco.MjModel, np.n
     return model, qpos
 
 
-def load_scene_model(scene_dir: str | Path) -> mujoco.MjModel:
-    """Compile the MJCF written by the scene stage."""
+def load_scene_spec(scene_dir: str | Path) -> mujoco.MjSpec:
+    """The MJCF written by the scene stage, its meshes found in this environment's
+    ``example-robot-data``.
+
+    Raises:
+        ArtifactError: If the file is missing or does not parse.
+    """
     path = Path(scene_dir) / MJCF_FILE
     if not path.is_file():
         raise ArtifactError(
             f"scene MJCF {path} is missing (produced by stage 'scene'; "
             "rerun it with `dvc repro scene`)"
         )
+    xml = path.read_text().replace(f'meshdir="{MESHDIR}"', f'meshdir="{assets.robots_dir()}"')
     try:
-        return mujoco.MjModel.from_xml_path(str(path))
+        return mujoco.MjSpec.from_string(xml)
     except ValueError as exc:
-        raise ArtifactError(f"scene MJCF {path} does not compile: {exc}") from None
+        raise ArtifactError(f"scene MJCF {path} does not parse: {exc}") from None
+
+
+def load_scene_model(scene_dir: str | Path) -> mujoco.MjModel:
+    """Compile the MJCF written by the scene stage (:func:`load_scene_spec`).
+
+    Raises:
+        ArtifactError: If the file is missing or does not compile.
+    """
+    spec = load_scene_spec(scene_dir)
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise ArtifactError(
+            f"scene MJCF {Path(scene_dir) / MJCF_FILE} does not compile: {exc}"
+        ) from None
 
 
 def load_objects(scene_dir: str | Path) -> dict[str, Any]:
