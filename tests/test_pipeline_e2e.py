@@ -131,3 +131,19 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     second = _run([*dvc, "repro", "evaluate@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout
+
+
+def test_a_temporary_experiment_runs_in_dvcs_own_copy(workdir):
+    """`dvc exp run --temp` runs in a copy without the checkout's .venv: the scene's MJCF
+    must load there (it once named its meshes through the .venv)."""
+    git = ["git", "-c", "user.name=test", "-c", "user.email=test@example.com"]
+    assert _run([*git, "add", "-A"], workdir).returncode == 0
+    assert _run([*git, "commit", "-qm", "base"], workdir).returncode == 0
+    dvc = [sys.executable, "-m", "dvc"]
+    run = _run(
+        [*dvc, "exp", "run", "--temp", "-S", "scenario.box_mass=2.5", "generate@tiny"], workdir
+    )
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "Ran experiment" in run.stdout + run.stderr
+    shown = _run([*dvc, "exp", "show", "--json"], workdir)
+    assert shown.returncode == 0 and "2.5" in shown.stdout
