@@ -51,7 +51,7 @@ def _run(optimizer, inputs, cfg, evaluate_cfg) -> dict:
     traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
     with tempfile.TemporaryDirectory() as tmp:
         solve_dir, eval_dir = Path(tmp) / "solve", Path(tmp) / "evaluate"
-        write_solution(solve_dir, traj, inputs, optimizer, cfg)
+        write_solution(solve_dir, traj, inputs, optimizer, cfg, ROOT / "scene")
         metrics = evaluate_scenario(ROOT / "scene", solve_dir, eval_dir, evaluate_cfg)
     return {
         "status": traj.status,

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import json
 
+import mujoco
 import numpy as np
 import pytest
 
 from locoman.artifacts import ArtifactSchema, Field, read_json, read_npz, write_json, write_npz
 from locoman.artifacts.mcap_io import read_json_messages, write_frame_transforms
 from locoman.errors import ArtifactError
-from locoman.scene.io import OBJECTS_FILE, PLAN_FILE, load_objects, load_plan
+from locoman.scene.io import OBJECTS_FILE, PLAN_FILE, load_objects, load_plan, load_scene_model
 
 TRAJ = ArtifactSchema(
     "test.trajectory",
@@ -179,3 +180,27 @@ def test_robot_trajectory_mcap_holds_every_link_pose(tmp_path):
     np.testing.assert_allclose(
         [hand["x"], hand["y"], hand["z"]], data.body("left_rubber_hand").xpos, atol=1e-12
     )
+
+
+def test_the_solve_mcap_draws_every_body_of_the_scene(repo):
+    """trajectory.mcap carries foxglove.SceneUpdate on /scene: an entity per body with
+    visible geometry, frame-locked to its /tf frame when it moves, in world otherwise."""
+    root = repo / "data" / "tiny"
+    path = root / "solve" / "trajectory.mcap"
+    (schema, _, update), *rest = read_json_messages(path, "/scene")
+    assert schema == "foxglove.SceneUpdate" and not rest
+    frames = {t["child_frame_id"] for t in read_json_messages(path, "/tf")[0][2]["transforms"]}
+    model = load_scene_model(root / "scene")
+    visible = {
+        model.body(model.geom_bodyid[g]).name
+        for g in range(model.ngeom)
+        if model.geom_group[g] <= 2 and model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE
+    }
+    entities = {e["id"]: e for e in update["entities"]}
+    assert set(entities) == visible
+    assert {"pelvis", "left_knee_link", "box", "table"} <= set(entities)
+    for name, entity in entities.items():
+        assert entity["frame_locked"] == (name in frames)
+        assert entity["frame_id"] == (name if name in frames else "world")
+        shapes = entity.get("cubes", []) + entity.get("spheres", []) + entity.get("cylinders", [])
+        assert shapes and all(min(s["size"].values()) > 0.0 for s in shapes)

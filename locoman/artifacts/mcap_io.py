@@ -2,7 +2,8 @@
 
 Messages are JSON-encoded with the ``jsonschema`` schema encoding, which Foxglove reads
 natively. :func:`write_frame_transforms` writes ``foxglove.FrameTransforms``: one message per
-time step holding the pose of every link or object relative to ``world``.
+time step holding the pose of every link or object relative to ``world``; with the scene's
+geometry (``foxglove.SceneUpdate`` on ``/scene``) Foxglove's 3D panel draws them moving.
 """
 
 from __future__ import annotations
@@ -46,6 +47,50 @@ FRAME_TRANSFORMS_SCHEMA: dict[str, Any] = {
 }
 
 
+_COLOUR = {"type": "object", "properties": {k: {"type": "number"} for k in "rgba"}}
+_POSE = {"type": "object", "properties": {"position": _VEC3, "orientation": _QUAT}}
+_PRIMITIVE = {
+    "type": "array",
+    "items": {
+        "type": "object",
+        "properties": {
+            "pose": _POSE,
+            "size": _VEC3,
+            "color": _COLOUR,
+            "bottom_scale": {"type": "number"},
+            "top_scale": {"type": "number"},
+        },
+    },
+}
+SCENE_UPDATE_SCHEMA: dict[str, Any] = {
+    "title": "foxglove.SceneUpdate",
+    "type": "object",
+    "properties": {
+        "deletions": {"type": "array", "items": {"type": "object"}},
+        "entities": {
+            "type": "array",
+            "items": {
+                "title": "foxglove.SceneEntity",
+                "type": "object",
+                "properties": {
+                    "timestamp": _TIME,
+                    "frame_id": {"type": "string"},
+                    "id": {"type": "string"},
+                    "lifetime": _TIME,
+                    "frame_locked": {"type": "boolean"},
+                    "cubes": _PRIMITIVE,
+                    "spheres": _PRIMITIVE,
+                    "cylinders": _PRIMITIVE,
+                },
+            },
+        },
+    },
+}
+
+
+SCENE_TOPIC = "/scene"
+
+
 def _stamp(t: float) -> dict[str, int]:
     ns = round(t * 1e9)
     return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
@@ -57,6 +102,7 @@ def write_frame_transforms(
     frames: Mapping[str, tuple[np.ndarray, np.ndarray]],
     topic: str = "/tf",
     parent: str = "world",
+    entities: list[dict[str, Any]] | None = None,
 ) -> None:
     """Write link/object poses over time as ``foxglove.FrameTransforms`` messages.
 
@@ -66,8 +112,9 @@ def write_frame_transforms(
         frames: Frame name -> (positions (T, 3) [m], quaternions (T, 4) (w, x, y, z)).
         topic: MCAP topic.
         parent: Parent frame of every transform.
+        entities: ``foxglove.SceneEntity`` dicts for ``/scene`` (see :func:`write_mcap`).
     """
-    write_mcap(path, times, frames, {}, tf_topic=topic, parent=parent)
+    write_mcap(path, times, frames, {}, tf_topic=topic, parent=parent, entities=entities)
 
 
 def write_mcap(
@@ -77,8 +124,10 @@ def write_mcap(
     signals: Mapping[str, Mapping[str, np.ndarray]],
     tf_topic: str = "/tf",
     parent: str = "world",
+    entities: list[dict[str, Any]] | None = None,
 ) -> None:
-    """Write frames as ``foxglove.FrameTransforms`` and named signals as JSON topics.
+    """Write frames as ``foxglove.FrameTransforms``, named signals as JSON topics and the
+    scene's geometry as one ``foxglove.SceneUpdate`` on ``/scene``.
 
     Every signal topic carries one message per time step, an object mapping each signal name
     to its value(s) at that step (a number or a list of numbers), so Foxglove's Plot panel can
@@ -91,6 +140,8 @@ def write_mcap(
         signals: Topic -> signal name -> (T,) or (T, k) values.
         tf_topic: Topic of the frame transforms.
         parent: Parent frame of every transform.
+        entities: ``foxglove.SceneEntity`` dicts (:func:`locoman.sim.foxglove.scene_entities`),
+            published once at the first step; frame-locked ones move with their frames.
     """
     times = np.asarray(times, dtype=float)
     for name, (pos, quat) in frames.items():
@@ -116,6 +167,15 @@ def write_mcap(
             channels[tf_topic] = writer.register_channel(
                 topic=tf_topic, message_encoding="json", schema_id=schema_id
             )
+        if entities:
+            schema_id = writer.register_schema(
+                name="foxglove.SceneUpdate",
+                encoding="jsonschema",
+                data=json.dumps(SCENE_UPDATE_SCHEMA).encode(),
+            )
+            channels[SCENE_TOPIC] = writer.register_channel(
+                topic=SCENE_TOPIC, message_encoding="json", schema_id=schema_id
+            )
         for topic, named in signals.items():
             schema = {
                 "title": f"locoman{topic.replace('/', '.')}",
@@ -139,6 +199,8 @@ def write_mcap(
             messages: dict[str, Any] = {}
             if frames:
                 messages[tf_topic] = {"transforms": _transforms(frames, k, stamp, parent)}
+            if entities and k == 0:
+                messages[SCENE_TOPIC] = {"deletions": [], "entities": entities}
             for topic, named in signals.items():
                 messages[topic] = {n: np.asarray(v[k]).tolist() for n, v in named.items()}
             for topic, message in messages.items():

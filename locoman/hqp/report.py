@@ -16,6 +16,7 @@ from locoman.hqp.limits import JointLimits
 from locoman.hqp.replay import ReplayLog, ReplayTask
 from locoman.scene.frames import body_frames
 from locoman.scene.mobile_manipulator import ARM_BASE_BODY
+from locoman.sim.foxglove import scene_entities
 
 #: Rate of the MCAP and the plot tables [Hz]; the npz keeps every control step.
 EXPORT_RATE_HZ = 100.0
@@ -125,6 +126,7 @@ def write_replay(
     sl = slice(None, None, step)
     t = log.time_s[sl]
     frames = body_frames(model, log.qpos[sl])
+    entities = scene_entities(model, log.qpos[0], moving=set(frames))
     ee_arm = _in_frame(log.ee_pos[sl], *frames[ARM_BASE_BODY])
     write_mcap(
         out / f"replay_{name}.mcap",
@@ -150,6 +152,7 @@ def write_replay(
                 "gripper_closed": log.gripper_closed[sl],
             },
         },
+        entities=entities,
     )
     plots = out / "plots"
     _csv(

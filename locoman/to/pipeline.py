@@ -19,6 +19,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
 from locoman.scene.rotations import matrix_to_rpy, quat_wxyz_to_matrix, rpy_to_matrix
+from locoman.sim.foxglove import scene_entities
 from locoman.to.collision import obstacles_from_objects
 from locoman.to.compile import cache_dir
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
@@ -136,7 +137,7 @@ def solve_scenario(
     inputs = load_inputs(scene_dir, contacts_dir, retarget_dir)
     optimizer = build_optimizer(inputs, cfg)
     traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
-    write_solution(out_dir, traj, inputs, optimizer, cfg)
+    write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir)
     return traj
 
 
@@ -146,8 +147,10 @@ def write_solution(
     inputs: TOInputs,
     optimizer: TrajectoryOptimizer,
     cfg: SolveCfg,
+    scene_dir: Path,
 ) -> None:
-    """The stage's outputs: trajectory, MCAP, metrics (and timing)."""
+    """The stage's outputs: trajectory, MCAP (frames and the scene's geometry), metrics (and
+    timing)."""
     n = optimizer.schedule.nodes
     goal = next((kf.goal for kf in reversed(inputs.keyframes) if kf.goal is not None), None)
     write_npz(
@@ -183,7 +186,10 @@ def write_solution(
             "prehensile": np.array(cfg.contact.prehensile),
         },
     )
-    write_frame_transforms(out_dir / MCAP_FILE, traj.time, _poses(traj, inputs.obj.name))
+    poses = _poses(traj, inputs.obj.name)
+    model = load_scene_model(scene_dir)
+    entities = scene_entities(model, load_state(scene_dir)["qpos"], moving=set(poses))
+    write_frame_transforms(out_dir / MCAP_FILE, traj.time, poses, entities=entities)
     write_metrics(
         out_dir,
         {
