@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import mujoco
 import numpy as np
 import pytest
 
 from locoman.artifacts import ArtifactSchema, Field, read_json, read_npz, write_json, write_npz
 from locoman.artifacts.mcap_io import read_json_messages, write_frame_transforms
+from locoman.artifacts.video import write_mp4
 from locoman.errors import ArtifactError
 from locoman.scene.io import OBJECTS_FILE, PLAN_FILE, load_objects, load_plan, load_scene_model
 
@@ -204,3 +206,17 @@ def test_the_solve_mcap_draws_every_body_of_the_scene(repo):
         assert entity["frame_id"] == (name if name in frames else "world")
         shapes = entity.get("cubes", []) + entity.get("spheres", []) + entity.get("cylinders", [])
         assert shapes and all(min(s["size"].values()) > 0.0 for s in shapes)
+
+
+def test_an_mp4_holds_every_frame_and_the_same_frames_give_the_same_bytes(tmp_path):
+    frames = [np.full((48, 64, 3), 5 * i, np.uint8) for i in range(20)]
+    assert write_mp4(tmp_path / "a.mp4", frames, 30.0) == 20
+    write_mp4(tmp_path / "b.mp4", frames, 30.0)
+    assert (tmp_path / "a.mp4").read_bytes() == (tmp_path / "b.mp4").read_bytes()
+    video = cv2.VideoCapture(str(tmp_path / "a.mp4"))
+    assert video.get(cv2.CAP_PROP_FRAME_COUNT) == 20 and video.get(cv2.CAP_PROP_FPS) == 30.0
+    with pytest.raises(ArtifactError, match="no frame"):
+        write_mp4(tmp_path / "c.mp4", [], 30.0)
+    with pytest.raises(ArtifactError, match="frame 1"):
+        write_mp4(tmp_path / "c.mp4", [frames[0], frames[0][:, :32]], 30.0)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "b.mp4"]

@@ -128,6 +128,7 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     assert evaluate["avg_penetration_m"] <= 0.01
     assert evaluate["success"], evaluate
     assert (root / "evaluate" / "plots" / "filmstrip.png").is_file()
+    assert (root / "evaluate" / "motion.mp4").stat().st_size > 0
     second = _run([*dvc, "repro", "evaluate@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout

@@ -6,12 +6,14 @@ Layout under ``data/<scenario>/evaluate/``::
                               and failed_checks (which of them failed)
     plots/penetration.csv     total penetration per node (paper A, Fig. 5), for dvc plots
     plots/filmstrip.png       the motion, a few nodes side by side
+    motion.mp4                the motion in real time, 30 frames per second
 """
 
 from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -25,6 +27,7 @@ from locoman.artifacts import (
     write_text_atomic,
 )
 from locoman.artifacts.pictures import fit_tile
+from locoman.artifacts.video import write_mp4
 from locoman.config.to import EvaluateCfg
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
@@ -41,39 +44,78 @@ from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import ObjectModel
 
 TILE = 320
+VIDEO_FILE = "motion.mp4"
+VIDEO_FPS = 30.0  # [1/s]
+VIDEO_SIZE = (640, 480)  # width, height [px]
+
+
+def _options() -> mujoco.MjvOption:
+    """The G1's visual meshes, not its collision primitives."""
+    option = mujoco.MjvOption()
+    option.geomgroup[:] = 1
+    option.geomgroup[g1.COLLISION_GROUP] = 0
+    return option
+
+
+def _render(
+    renderer: mujoco.Renderer,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    q: np.ndarray,
+    object_name: str,
+    object_q: np.ndarray,
+    label: str,
+) -> np.ndarray:
+    """The scene with the G1 at ``q`` (35,) and the object at ``object_q``, seen from the
+    robot's front left, ``label`` written in its top left corner."""
+    data.qpos[:] = scene_qpos(model, q, object_name, object_q)
+    mujoco.mj_forward(model, data)
+    cam = mujoco.MjvCamera()
+    cam.lookat[:] = q[:3] + np.array([0.0, 0.0, -0.2])
+    cam.distance, cam.elevation = 3.0, -20.0
+    cam.azimuth = float(np.degrees(q[5])) + 180.0 - 50.0
+    renderer.update_scene(data, camera=cam, scene_option=_options())
+    image = renderer.render().copy()
+    # White on the image's top band (black was unreadable on the letterbox).
+    cv2.putText(
+        image, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA
+    )
+    return image
 
 
 def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -> np.ndarray:
     """Renders of evenly spaced nodes, two rows, each seen from the robot's front left."""
     data = mujoco.MjData(model)
-    option = mujoco.MjvOption()
-    option.geomgroup[:] = 1
-    option.geomgroup[g1.COLLISION_GROUP] = 0
     nodes = np.linspace(0, len(traj["q"]) - 1, frames).round().astype(int)
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
+    name = str(traj["object_name"])
     tiles = []
     with mujoco.Renderer(model, height=TILE, width=TILE) as renderer:
         for k in nodes:
-            data.qpos[:] = scene_qpos(
-                model, traj["q"][k], str(traj["object_name"]), traj["object_q"][k]
-            )
-            mujoco.mj_forward(model, data)
-            cam = mujoco.MjvCamera()
-            cam.lookat[:] = traj["q"][k, :3] + np.array([0.0, 0.0, -0.2])
-            cam.distance, cam.elevation = 3.0, -20.0
-            cam.azimuth = float(np.degrees(traj["q"][k, 5])) + 180.0 - 50.0
-            renderer.update_scene(data, camera=cam, scene_option=option)
-            tile = fit_tile(renderer.render().copy(), TILE)[0]
             label = f"t={time[k]:.2f}s {traj['phase'][k]}"
-            # White on the tile's black letterbox band (black was unreadable there).
-            cv2.putText(
-                tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA
-            )
-            tiles.append(tile)
+            image = _render(renderer, model, data, traj["q"][k], name, traj["object_q"][k], label)
+            tiles.append(fit_tile(image, TILE)[0])
     while len(tiles) % 2:
         tiles.append(np.full_like(tiles[0], 255))
     half = len(tiles) // 2
     return np.vstack([np.hstack(tiles[:half]), np.hstack(tiles[half:])]) if half else tiles[0]
+
+
+def motion_frames(
+    model: mujoco.MjModel, traj: dict[str, np.ndarray], fps: float, size: tuple[int, int]
+) -> Iterator[np.ndarray]:
+    """Frames (height, width, 3) of the motion in real time at ``fps`` [1/s]: robot and object
+    interpolated linearly between the nodes, the camera following the robot."""
+    time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
+    name = str(traj["object_name"])
+    width, height = size
+    data = mujoco.MjData(model)
+    with mujoco.Renderer(model, height=height, width=width) as renderer:
+        for t in np.arange(0.0, time[-1] + 0.5 / fps, 1.0 / fps):
+            q = np.array([np.interp(t, time, c) for c in traj["q"].T])
+            o = np.array([np.interp(t, time, c) for c in traj["object_q"].T])
+            k = min(int(np.searchsorted(time, t, side="right")), len(time) - 1)
+            yield _render(renderer, model, data, q, name, o, f"t={t:.2f}s {traj['phase'][k]}")
 
 
 def all_finite(traj: dict[str, np.ndarray]) -> bool:
@@ -158,5 +200,6 @@ def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Eval
         writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
     write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
     write_png(out_dir / "plots" / "filmstrip.png", filmstrip(model, traj, cfg.filmstrip_frames))
+    write_mp4(out_dir / VIDEO_FILE, motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE), VIDEO_FPS)
     write_metrics(out_dir, metrics)
     return metrics
