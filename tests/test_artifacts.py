@@ -220,3 +220,13 @@ def test_an_mp4_holds_every_frame_and_the_same_frames_give_the_same_bytes(tmp_pa
     with pytest.raises(ArtifactError, match="frame 1"):
         write_mp4(tmp_path / "c.mp4", [frames[0], frames[0][:, :32]], 30.0)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "b.mp4"]
+
+
+@pytest.mark.parametrize("keep", [0, 7, 1000, 50_000])
+def test_a_truncated_mcap_is_a_message(repo, tmp_path, keep):
+    data = (repo / "data" / "tiny" / "solve" / "trajectory.mcap").read_bytes()
+    (tmp_path / "t.mcap").write_bytes(data[:keep])
+    with pytest.raises(ArtifactError, match="truncated or corrupt"):
+        read_json_messages(tmp_path / "t.mcap", "/tf")
+    with pytest.raises(ArtifactError, match="missing"):
+        read_json_messages(tmp_path / "none.mcap", "/tf")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import shutil
+import subprocess
 
 import pytest
 import yaml
@@ -19,11 +20,44 @@ def raw(repo):
     return yaml.safe_load((repo / "params.yaml").read_text())
 
 
+def _git(repo, *args) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True)
+
+
+def _expected_params(repo) -> tuple[str, str]:
+    """What params.yaml must equal (conf/ composed) and which file that is. `dvc exp run -S
+    key=value` rewrites params.yaml in the workspace with its overrides, a legitimate
+    workflow: while conf/ is as committed, the committed params.yaml is the one compared."""
+    conf_as_committed = _git(repo, "diff", "--quiet", "HEAD", "--", "conf").returncode == 0
+    committed = _git(repo, "show", "HEAD:params.yaml")
+    if conf_as_committed and committed.returncode == 0:
+        return committed.stdout, "the committed params.yaml"
+    # conf/ edited (or no git): the workspace's params.yaml must follow it
+    return (repo / "params.yaml").read_text(), "params.yaml"
+
+
 def test_committed_params_is_not_stale(repo, monkeypatch):
     monkeypatch.chdir(repo)
-    assert compose_text([]) == (repo / "params.yaml").read_text(), (
-        "params.yaml is stale against conf/; run `make params`"
-    )
+    expected, where = _expected_params(repo)
+    assert compose_text([]) == expected, f"{where} is stale against conf/; run `make params`"
+
+
+def test_an_experiments_overrides_in_params_do_not_count_as_stale(repo, tmp_path, monkeypatch):
+    """In a copy of the project after `dvc exp run -S scenario.box_mass=2.5`, which leaves
+    the override in params.yaml; and after an edit of conf/ without `make params`."""
+    copy = tmp_path / "project"
+    shutil.copytree(repo / "conf", copy / "conf")
+    (copy / "params.yaml").write_text((repo / "params.yaml").read_text())
+    identity = ["-c", "user.name=t", "-c", "user.email=t@example.com"]
+    for args in (["init", "-q"], ["add", "-A"], [*identity, "commit", "-qm", "base"]):
+        assert _git(copy, *args).returncode == 0
+    params = copy / "params.yaml"
+    params.write_text(params.read_text().replace("box_mass: 5.0", "box_mass: 2.5", 1))
+    monkeypatch.chdir(copy)
+    assert compose_text([]) == _expected_params(copy)[0]
+    config = copy / "conf" / "config.yaml"
+    config.write_text(config.read_text().replace("box_mass: 5.0", "box_mass: 7.5", 1))
+    assert compose_text([]) != _expected_params(copy)[0]
 
 
 def test_box_mass_override_reaches_every_humanoid_scenario(repo, monkeypatch):

@@ -9,15 +9,18 @@ geometry (``foxglove.SceneUpdate`` on ``/scene``) Foxglove's 3D panel draws them
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
 from locoman.artifacts.io import atomic_path
+from locoman.errors import ArtifactError
 
 _VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
 _QUAT = {"type": "object", "properties": {k: {"type": "number"} for k in "xyzw"}}
@@ -237,10 +240,23 @@ def _transforms(
 
 
 def read_json_messages(path: str | Path, topic: str) -> list[tuple[str, int, dict[str, Any]]]:
-    """All messages on ``topic`` as (schema name, log time [ns], decoded JSON)."""
+    """All messages on ``topic`` as (schema name, log time [ns], decoded JSON).
+
+    Raises:
+        ArtifactError: If the file is missing, truncated or not an MCAP file written here.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ArtifactError(f"MCAP file {path} is missing; rerun the stage that writes it")
     out = []
-    with open(path, "rb") as fh:
-        for schema, _channel, message in make_reader(fh).iter_messages(topics=[topic]):
-            name = schema.name if schema is not None else ""
-            out.append((name, message.log_time, json.loads(message.data)))
+    try:
+        with open(path, "rb") as fh:
+            for schema, _channel, message in make_reader(fh).iter_messages(topics=[topic]):
+                name = schema.name if schema is not None else ""
+                out.append((name, message.log_time, json.loads(message.data)))
+    except (McapError, struct.error, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ArtifactError(
+            f"MCAP file {path} is truncated or corrupt ({type(exc).__name__}: {exc}); "
+            "rerun the stage that writes it"
+        ) from None
     return out
