@@ -21,7 +21,7 @@ from locoman.kmp.io import DEMOS, GMR, REFERENCE
 from locoman.scene.io import load_objects, load_plan
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
-PLOT_RATE_HZ = 100.0
+PLOT_RATE_HZ = 20.0  # the dvc plots CSV: Vega inlines every row of every curve
 
 
 def main() -> Path:

@@ -76,3 +76,16 @@ def test_a_stage_that_succeeds_leaves_exactly_its_new_outputs(data, capsys):
 def test_the_verdict_reads_every_check_of_the_metrics(metrics, expected):
     assert expected in stage.verdict(metrics)
     assert ("FAILED" in stage.verdict(metrics)) == (expected != "checks passed")
+
+
+def test_the_dvc_plots_stay_small_enough_to_open(repo):
+    """`dvc plots show` inlines every row of every curve into one page (it once wrote 36 MB):
+    each CSV the top-level plots draw holds at most 1,000 rows."""
+    import yaml
+
+    plots = yaml.safe_load((repo / "dvc.yaml").read_text())["plots"]
+    files = {f for entry in plots for spec in entry.values() for f in spec["y"]}
+    assert files
+    for name in files:
+        rows = (repo / name).read_text().count("\n") - 1
+        assert 0 < rows <= 1000, (name, rows)

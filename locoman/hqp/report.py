@@ -21,7 +21,8 @@ from locoman.scene.mobile_manipulator import ARM_BASE_BODY
 from locoman.sim.foxglove import scene_entities
 
 #: Rate of the MCAP and the plot tables [Hz]; the npz keeps every control step.
-EXPORT_RATE_HZ = 100.0
+EXPORT_RATE_HZ = 100.0  # MCAP and figures
+CSV_EVERY = 5  # the dvc plots CSVs at 20 Hz: Vega inlines every row of every curve
 #: The bottle counts as upright when its axis is within this angle of vertical [rad].
 UPRIGHT_TOL_RAD = 0.2
 #: ... and as lifted when it rose this far above its start [m].
@@ -187,20 +188,20 @@ def write_replay(
     _csv(
         plots / f"{name}_ee_pos.csv",
         "time_s,x_d,y_d,z_d,x_a,y_a,z_a",
-        np.c_[t, log.ee_pos_desired[sl], log.ee_pos[sl]],
+        np.c_[t, log.ee_pos_desired[sl], log.ee_pos[sl]][::CSV_EVERY],
     )
     _csv(
         plots / f"{name}_ee_vel.csv",
         "time_s,vx_d,vy_d,vz_d,vx_a,vy_a,vz_a",
-        np.c_[t, log.ee_vel_desired[sl], log.ee_vel[sl]],
+        np.c_[t, log.ee_vel_desired[sl], log.ee_vel[sl]][::CSV_EVERY],
     )
     _csv(
         plots / f"{name}_base.csv",
         "time_s,x_learned,y_learned,yaw_learned,x_optimal,y_optimal,yaw_optimal,"
         "x_actual,y_actual,yaw_actual",
-        np.c_[t, log.base_learned[sl], log.base_optimal[sl], log.base_actual[sl]],
+        np.c_[t, log.base_learned[sl], log.base_optimal[sl], log.base_actual[sl]][::CSV_EVERY],
     )
-    _csv(plots / f"{name}_ee_arm.csv", "time_s,x_r,y_r,z_r", np.c_[t, ee_arm])
+    _csv(plots / f"{name}_ee_arm.csv", "time_s,x_r,y_r,z_r", np.c_[t, ee_arm][::CSV_EVERY])
     series = ReplaySeries(
         t,
         log.ee_pos_desired[sl],
