@@ -9,7 +9,7 @@ export PYOPENGL_PLATFORM ?= egl
 # Stages call `python`: make it the project environment's.
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: setup run test lint params bench clean-venv
+.PHONY: setup run test lint params bench results clean-venv
 
 setup: $(STAMP)
 
@@ -28,6 +28,10 @@ run: setup
 
 test: setup
 	$(BIN)/python -m pytest -q
+
+# The headline numbers per scenario, one table (from the stages' metrics.json).
+results: setup
+	$(BIN)/python -m locoman.results
 
 lint: setup
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .

@@ -100,12 +100,23 @@ def split_wall_clock(data: Any) -> tuple[Any, Any]:
     return data, None
 
 
+# Top-level keys of per-item detail (a row per subtask): they go to details.json, so that
+# `dvc metrics show` and `dvc exp show` compare the headline figures, not hundreds of columns.
+DETAIL_KEYS = frozenset({"per_subtask"})
+DETAILS_FILE = "details.json"
+
+
 def write_metrics(out_dir: str | Path, metrics: Mapping[str, Any]) -> None:
-    """A stage's figures: ``metrics.json`` the results, ``timing.json`` beside it the
-    wall-clock figures (:func:`split_wall_clock`), each atomically."""
+    """A stage's figures: ``metrics.json`` the results, ``details.json`` beside it the
+    per-item rows (:data:`DETAIL_KEYS`, when there are any), ``timing.json`` the wall-clock
+    figures (:func:`split_wall_clock`), each atomically."""
     science, timing = split_wall_clock(dict(metrics))
-    write_json_atomic(Path(out_dir) / "metrics.json", science)
-    write_json_atomic(Path(out_dir) / "timing.json", timing or {})
+    details = {k: science.pop(k) for k in sorted(DETAIL_KEYS & set(science))}
+    out = Path(out_dir)
+    write_json_atomic(out / "metrics.json", science)
+    if details:
+        write_json_atomic(out / DETAILS_FILE, details)
+    write_json_atomic(out / "timing.json", timing or {})
 
 
 def _meta(schema: ArtifactSchema) -> dict[str, Any]:
