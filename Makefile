@@ -23,10 +23,17 @@ $(STAMP): pyproject.toml requirements.lock
 	@[ -d .dvc ] || $(BIN)/dvc init -q
 	touch $(STAMP)
 
+# torch serves only the optional learned backends: not in the default install, but the
+# tests exercise the TorchScript descriptor with a tiny model.
+LEARNED := $(VENV)/.installed-learned
+$(LEARNED): $(STAMP)
+	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev,learned]"
+	touch $(LEARNED)
+
 run: setup
 	$(BIN)/dvc repro
 
-test: setup
+test: setup $(LEARNED)
 	$(BIN)/python -m pytest -q
 
 # The headline numbers per scenario, one table (from the stages' metrics.json).

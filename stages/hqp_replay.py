@@ -19,6 +19,7 @@ from locoman.hqp.replay import ReplayTask, joint_limits, replay
 from locoman.hqp.report import replay_metrics, write_replay
 from locoman.kmp.demos import task_points
 from locoman.kmp.io import REFERENCE
+from locoman.progress import progress
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
 from locoman.stage import DATA_DIR, run_stage, stage_dir
 
@@ -34,7 +35,7 @@ def main() -> Path:
     home = load_state(scene)["qpos"]
     out = stage_dir(d.scenario, "hqp_replay")
     metrics = {}
-    for name in cfg.kmp.cases:
+    for name in progress(cfg.kmp.cases, "hqp_replay cases"):
         ref = read_npz(root / "kmp_fit" / f"reference_{name}.npz", REFERENCE)
         steps = np.diff(ref["time_s"])
         if not np.allclose(steps, h.dt, rtol=1e-6, atol=1e-12):

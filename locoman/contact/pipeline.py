@@ -27,6 +27,7 @@ from locoman.perception.generate import subtask_rng
 from locoman.perception.io import CLOUDS, MASKS, POSE, PROMPTS, PROMPTS_FILE, SIM_VIEW, read_png
 from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
 from locoman.perception.masks import load_truth, median_or_none
+from locoman.progress import progress
 from locoman.scene.io import load_objects
 
 CONTACTS_SEED_OFFSET = 3  # the contacts stage draws from its own stream
@@ -122,7 +123,7 @@ def contacts_scenario(
     objects = load_objects(scene_dir)
     describer = semantic.make_describer(cfg.pool)
     rows: list[dict[str, Any]] = []
-    for entry in prompts["subtasks"]:
+    for entry in progress(prompts["subtasks"], f"contacts {scenario}"):
         i = entry["index"]
         t0 = time.perf_counter()
         inputs = load_inputs(entry, objects, generate_dir, masks_dir, clouds_dir)

@@ -39,6 +39,7 @@ from locoman.perception.io import (
     read_png,
 )
 from locoman.perception.masks import load_truth, median_or_none
+from locoman.progress import progress
 
 CLOUD_SEED_OFFSET = 2  # the clouds stage draws from its own stream
 KEYPOINT_WINDOW_PX = 2  # half size of the window whose median depth lifts a keypoint
@@ -134,7 +135,7 @@ def clouds_scenario(
         DepthAnythingEstimator(cfg.depth_weights_dir) if cfg.depth == "depth_anything" else None
     )
     rows = []
-    for entry in prompts["subtasks"]:
+    for entry in progress(prompts["subtasks"], f"clouds {scenario}"):
         i = entry["index"]
         where = f"subtask {i} ({entry['prompt']!r}, object {entry['object']!r})"
         t0 = time.perf_counter()

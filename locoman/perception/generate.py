@@ -24,6 +24,7 @@ from locoman.perception.io import (
 from locoman.perception.prompts import augment_prompt
 from locoman.perception.render_backend import StandOn, object_patches, render_subtask
 from locoman.perception.sim_view import render_sim_view
+from locoman.progress import progress
 from locoman.scene.io import load_objects, load_plan
 from locoman.scene.objects import ContactPatch
 from locoman.scene.plan_state import plan_states, world_pose
@@ -48,7 +49,10 @@ def generate_scenario(
     generator = flux.load_flux_pipeline(cfg.flux) if cfg.backend == "flux" else None
     entries, per_subtask = [], []
     states = plan_states(objects, plan["subtasks"])
-    for sub, state in zip(sorted(plan["subtasks"], key=lambda s: s["index"]), states, strict=True):
+    ordered = sorted(plan["subtasks"], key=lambda s: s["index"])
+    for sub, state in progress(
+        zip(ordered, states, strict=True), f"generate {scenario}", len(ordered)
+    ):
         i, name = sub["index"], sub["object"]
         t0 = time.perf_counter()
         prompt = augment_prompt(sub["prompt"])

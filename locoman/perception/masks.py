@@ -35,6 +35,7 @@ from locoman.perception.segment import (
     grabcut_mask,
     mask_iou,
 )
+from locoman.progress import progress
 from locoman.scene import human
 
 MASK_SEED_OFFSET = 1  # the masks stage draws from its own stream, apart from generate's
@@ -63,7 +64,7 @@ def masks_scenario(
     sam = SamSegmenter(cfg.sam_weights_dir) if cfg.backend == "sam" else None
     joint_names = [human.human_pinocchio_model().names[j] for j in range(2, 38)]
     rows = []
-    for entry in prompts["subtasks"]:
+    for entry in progress(prompts["subtasks"], f"masks {scenario}"):
         i = entry["index"]
         where = f"subtask {i} ({entry['prompt']!r}, object {entry['object']!r})"
         t0 = time.perf_counter()

@@ -16,9 +16,14 @@ def require_package(module: str) -> Any:
     try:
         return __import__(module)
     except ImportError:
+        how = (
+            "`.venv/bin/pip install -e .[learned]` (the CPU build, pinned)"
+            if module == "torch"
+            else f"`.venv/bin/pip install {module}`"
+        )
         raise ModelError(
-            f"the learned backend needs the {module!r} package: "
-            f"`.venv/bin/pip install {module}` (it is not part of the default install)"
+            f"the learned backend needs the {module!r} package: {how}; it is not part of "
+            "the default install"
         ) from None
 
 

@@ -24,6 +24,7 @@ from locoman.contact.scoring import true_contacts
 from locoman.perception.io import POSE, PROMPTS, PROMPTS_FILE, read_png
 from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
 from locoman.perception.masks import load_truth, median_or_none
+from locoman.progress import progress
 from locoman.retarget.checks import com_support_margin, joint_limit_violation, self_collision_pairs
 from locoman.retarget.ik import IKProblem, IKResult, Retargeter, yaw_of
 from locoman.retarget.io import KEYFRAME, MCAP_FILE, PLOTS_DIR, keyframe_file
@@ -93,7 +94,7 @@ def retarget_scenario(
     half_width, scale = g1_stance_half_width(), body_scale()
     standing: dict[str, np.ndarray] = {}
     rows, seconds, frames = [], [], []
-    for entry in prompts["subtasks"]:
+    for entry in progress(prompts["subtasks"], f"retarget {scenario}"):
         i = entry["index"]
         contacts = read_npz(contact_file(contacts_dir, i), CONTACTS)
         pose = read_npz(masks_dir / PERCEPTION_SUBTASKS / f"pose_{i}.npz", POSE)
