@@ -23,3 +23,15 @@ def params():
     from locoman.config import load_params
 
     return load_params(REPO / "params.yaml")
+
+
+@pytest.fixture(scope="session")
+def tiny_scene(params, tmp_path_factory) -> Path:
+    """tiny's scene stage outputs (scene.xml, objects.json, plan.json, initial state),
+    written here: a fresh clone has no data/ outputs (they live in DVC's cache)."""
+    from locoman.scene.builder import build_scene
+    from locoman.scene.io import write_scene
+
+    out = tmp_path_factory.mktemp("tiny_scene")
+    write_scene(out, build_scene("tiny", params.scenarios["tiny"], (64, 48)))
+    return out

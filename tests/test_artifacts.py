@@ -13,7 +13,9 @@ from locoman.artifacts import ArtifactSchema, Field, read_json, read_npz, write_
 from locoman.artifacts.mcap_io import read_json_messages, write_frame_transforms
 from locoman.artifacts.video import write_mp4
 from locoman.errors import ArtifactError
+from locoman.scene.frames import body_frames
 from locoman.scene.io import OBJECTS_FILE, PLAN_FILE, load_objects, load_plan, load_scene_model
+from locoman.sim.foxglove import scene_entities
 
 TRAJ = ArtifactSchema(
     "test.trajectory",
@@ -122,19 +124,18 @@ def test_json_round_trip_and_type_check(tmp_path):
         (lambda d: d["objects"]["box"].update(movable=1), r"'movable' is a int, expected bool"),
     ],
 )
-def test_a_nested_json_field_missing_or_mistyped_is_named(repo, tmp_path, edit, message):
+def test_a_nested_json_field_missing_or_mistyped_is_named(tiny_scene, tmp_path, edit, message):
     """A hand-edited objects.json fails on read with the entry and key, not a KeyError
     deep in a stage."""
-    scene = repo / "data" / "tiny" / "scene"
-    data = json.loads((scene / OBJECTS_FILE).read_text())
+    data = json.loads((tiny_scene / OBJECTS_FILE).read_text())
     edit(data)
     (tmp_path / OBJECTS_FILE).write_text(json.dumps(data))
     with pytest.raises(ArtifactError, match=message):
         load_objects(tmp_path)
 
 
-def test_a_plan_subtask_without_a_predicate_is_named(repo, tmp_path):
-    data = json.loads((repo / "data" / "tiny" / "scene" / PLAN_FILE).read_text())
+def test_a_plan_subtask_without_a_predicate_is_named(tiny_scene, tmp_path):
+    data = json.loads((tiny_scene / PLAN_FILE).read_text())
     del data["subtasks"][1]["predicate"]
     (tmp_path / PLAN_FILE).write_text(json.dumps(data))
     with pytest.raises(ArtifactError, match=r"entry 1: key 'predicate' is missing"):
@@ -184,28 +185,41 @@ def test_robot_trajectory_mcap_holds_every_link_pose(tmp_path):
     )
 
 
-def test_the_solve_mcap_draws_every_body_of_the_scene(repo):
-    """trajectory.mcap carries foxglove.SceneUpdate on /scene: an entity per body with
-    visible geometry, frame-locked to its /tf frame when it moves, in world otherwise."""
-    root = repo / "data" / "tiny"
-    path = root / "solve" / "trajectory.mcap"
+def test_the_mcap_draws_every_body_of_the_scene(tiny_scene, tmp_path):
+    """An MCAP with the scene's geometry carries one foxglove.SceneUpdate on /scene: an
+    entity per body with visible geometry, frame-locked to its /tf frame when it moves, in
+    world otherwise (the solve stage's trajectory.mcap: tests/test_pipeline_e2e.py)."""
+    model = load_scene_model(tiny_scene)
+    qpos = model.key("home").qpos
+    moving = {"pelvis", "left_knee_link", "torso_link", "box"}
+    frames = {k: v for k, v in body_frames(model, np.stack([qpos, qpos])).items() if k in moving}
+    path = tmp_path / "t.mcap"
+    entities = scene_entities(model, qpos, moving=set(frames))
+    write_frame_transforms(path, np.array([0.0, 0.1]), frames, entities=entities)
     (schema, _, update), *rest = read_json_messages(path, "/scene")
     assert schema == "foxglove.SceneUpdate" and not rest
-    frames = {t["child_frame_id"] for t in read_json_messages(path, "/tf")[0][2]["transforms"]}
-    model = load_scene_model(root / "scene")
     visible = {
         model.body(model.geom_bodyid[g]).name
         for g in range(model.ngeom)
         if model.geom_group[g] <= 2 and model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE
     }
-    entities = {e["id"]: e for e in update["entities"]}
-    assert set(entities) == visible
-    assert {"pelvis", "left_knee_link", "box", "table"} <= set(entities)
-    for name, entity in entities.items():
-        assert entity["frame_locked"] == (name in frames)
-        assert entity["frame_id"] == (name if name in frames else "world")
+    by_id = {e["id"]: e for e in update["entities"]}
+    assert set(by_id) == visible and moving <= visible and "table" in visible
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    for name, entity in by_id.items():
+        assert entity["frame_locked"] == (name in moving)
+        assert entity["frame_id"] == (name if name in moving else "world")
         shapes = entity.get("cubes", []) + entity.get("spheres", []) + entity.get("cylinders", [])
         assert shapes and all(min(s["size"].values()) > 0.0 for s in shapes)
+    # A fixed body's box sits where MuJoCo puts the geom; a moving one in its frame.
+    for name in ("table", "box"):
+        b = model.body(name).id
+        g = next(i for i in range(model.ngeom) if model.geom_bodyid[i] == b)
+        p = by_id[name]["cubes"][0]["pose"]["position"]
+        expected = data.geom_xpos[g] if name == "table" else model.geom_pos[g]
+        np.testing.assert_allclose([p["x"], p["y"], p["z"]], expected, atol=1e-9)
 
 
 def test_an_mp4_holds_every_frame_and_the_same_frames_give_the_same_bytes(tmp_path):
@@ -223,8 +237,11 @@ def test_an_mp4_holds_every_frame_and_the_same_frames_give_the_same_bytes(tmp_pa
 
 
 @pytest.mark.parametrize("keep", [0, 7, 1000, 50_000])
-def test_a_truncated_mcap_is_a_message(repo, tmp_path, keep):
-    data = (repo / "data" / "tiny" / "solve" / "trajectory.mcap").read_bytes()
+def test_a_truncated_mcap_is_a_message(tmp_path, keep):
+    frames = {"box": (np.zeros((500, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (500, 1)))}
+    write_frame_transforms(tmp_path / "whole.mcap", np.arange(500) * 0.01, frames)
+    data = (tmp_path / "whole.mcap").read_bytes()
+    assert len(data) > 50_000
     (tmp_path / "t.mcap").write_bytes(data[:keep])
     with pytest.raises(ArtifactError, match="truncated or corrupt"):
         read_json_messages(tmp_path / "t.mcap", "/tf")

@@ -8,10 +8,9 @@ import pytest
 
 from locoman.config.to import EvaluateCfg
 from locoman.errors import SceneError
-from locoman.scene.io import load_scene_model
 from locoman.sim.evaluate import object_at_rest, support_under
 from locoman.sim.pipeline import all_finite
-from locoman.sim.view import trajectory_qpos, view
+from locoman.sim.view import view
 
 
 def _table(pos, yaw=0.0) -> dict:
@@ -73,15 +72,8 @@ def test_evaluate_tolerances_must_be_finite_and_positive(value):
     assert dict(EvaluateCfg().check()) == {}
 
 
-def test_the_viewer_says_it_needs_a_display(repo, monkeypatch):
+def test_the_viewer_says_it_needs_a_display(tiny_scene, monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(SceneError, match="no display"):
-        view(repo / "data" / "tiny" / "scene", None)
-
-
-def test_the_viewer_plays_every_node_of_the_trajectory(repo):
-    model = load_scene_model(repo / "data" / "tiny" / "scene")
-    times, qpos = trajectory_qpos(model, repo / "data" / "tiny" / "solve")
-    assert qpos.shape == (len(times), model.nq) and np.all(np.diff(times) > 0)
-    assert np.all(np.isfinite(qpos))
+        view(tiny_scene, None)

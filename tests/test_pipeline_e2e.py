@@ -9,9 +9,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from locoman.artifacts.mcap_io import read_json_messages
+from locoman.scene.io import load_scene_model
+from locoman.sim.view import trajectory_qpos
 from locoman.to.compile import CACHE_ENV
 
 REPO = Path(__file__).resolve().parents[1]
@@ -129,6 +132,11 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     assert evaluate["success"], evaluate
     assert (root / "evaluate" / "plots" / "filmstrip.png").is_file()
     assert (root / "evaluate" / "motion.mp4").stat().st_size > 0
+    (schema, _, update), *rest = read_json_messages(root / "solve" / "trajectory.mcap", "/scene")
+    assert schema == "foxglove.SceneUpdate" and not rest
+    assert {"pelvis", "box", "table"} <= {e["id"] for e in update["entities"]}
+    times, qpos = trajectory_qpos(load_scene_model(root / "scene"), root / "solve")
+    assert len(times) == solve["nodes"] and np.all(np.isfinite(qpos))  # the viewer's frames
     second = _run([*dvc, "repro", "evaluate@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout

@@ -95,10 +95,10 @@ def test_unreachable_arm_start_is_reported():
         mobile_manipulator.start_qpos(model, np.zeros(3), np.array([3.0, 0.0, 1.0]))
 
 
-def test_the_scene_mjcf_holds_no_path_of_this_checkout(repo, tmp_path):
+def test_the_scene_mjcf_holds_no_path_of_this_checkout(repo, tiny_scene, tmp_path):
     """scene.xml names its meshes by package, so it loads from a copy in another folder
     (DVC's experiment copies have no .venv)."""
-    scene = repo / "data" / "tiny" / "scene"
+    scene = tiny_scene
     text = (scene / "scene.xml").read_text()
     assert ".venv" not in text and str(repo) not in text
     assert 'meshdir="package://example-robot-data/robots/"' in text
