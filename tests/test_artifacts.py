@@ -236,13 +236,12 @@ def test_an_mp4_holds_every_frame_and_the_same_frames_give_the_same_bytes(tmp_pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "b.mp4"]
 
 
-@pytest.mark.parametrize("keep", [0, 7, 1000, 50_000])
+@pytest.mark.parametrize("keep", [0.0, 0.001, 0.1, 0.7])
 def test_a_truncated_mcap_is_a_message(tmp_path, keep):
     frames = {"box": (np.zeros((500, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (500, 1)))}
     write_frame_transforms(tmp_path / "whole.mcap", np.arange(500) * 0.01, frames)
     data = (tmp_path / "whole.mcap").read_bytes()
-    assert len(data) > 50_000
-    (tmp_path / "t.mcap").write_bytes(data[:keep])
+    (tmp_path / "t.mcap").write_bytes(data[: int(keep * len(data))])
     with pytest.raises(ArtifactError, match="truncated or corrupt"):
         read_json_messages(tmp_path / "t.mcap", "/tf")
     with pytest.raises(ArtifactError, match="missing"):

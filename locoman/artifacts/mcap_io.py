@@ -254,7 +254,7 @@ def read_json_messages(path: str | Path, topic: str) -> list[tuple[str, int, dic
             for schema, _channel, message in make_reader(fh).iter_messages(topics=[topic]):
                 name = schema.name if schema is not None else ""
                 out.append((name, message.log_time, json.loads(message.data)))
-    except (McapError, struct.error, json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (McapError, OSError, struct.error, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ArtifactError(
             f"MCAP file {path} is truncated or corrupt ({type(exc).__name__}: {exc}); "
             "rerun the stage that writes it"
