@@ -94,6 +94,7 @@ def verdict(metrics: dict) -> str:
             checks += 1
             if not node["success"]:
                 why = node.get("failed_checks") or node.get("status")
+                why = ", ".join(map(str, why)) if isinstance(why, list) else why
                 failures.append(f"{path or 'success'}{f' ({why})' if why else ''}")
         for key, child in node.items():
             visit(child, f"{path}.{key}" if path else key)

@@ -67,7 +67,7 @@ def test_a_stage_that_succeeds_leaves_exactly_its_new_outputs(data, capsys):
     ("metrics", "expected"),
     [
         ({"success": True, "failed_checks": []}, "checks passed"),
-        ({"success": False, "failed_checks": ["max_penetration"]}, "max_penetration"),
+        ({"success": False, "failed_checks": ["finite", "max_penetration"]}, "(finite, max_pen"),
         ({"replica": {"success": True}, "generalisation": {"success": False}}, "generalisation"),
         ({"unreachable_contacts": 4, "self_collision_pairs": 0}, "unreachable_contacts = 4"),
         ({"n_geoms": 12}, "checks passed"),
