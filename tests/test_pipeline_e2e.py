@@ -142,9 +142,9 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     assert "Running stage" not in second.stdout, second.stdout
 
 
-def test_a_temporary_experiment_runs_in_dvcs_own_copy(workdir):
-    """`dvc exp run --temp` runs in a copy without the checkout's .venv: the scene's MJCF
-    must load there (it once named its meshes through the .venv)."""
+def test_temporary_and_queued_experiments_run_in_dvcs_own_copies(workdir):
+    """`dvc exp run --temp` and `--queue` run in copies without the checkout's .venv: the
+    scene's MJCF must load there (it once named its meshes through the .venv)."""
     git = ["git", "-c", "user.name=test", "-c", "user.email=test@example.com"]
     assert _run([*git, "add", "-A"], workdir).returncode == 0
     assert _run([*git, "commit", "-qm", "base"], workdir).returncode == 0
@@ -156,3 +156,11 @@ def test_a_temporary_experiment_runs_in_dvcs_own_copy(workdir):
     assert "Ran experiment" in run.stdout + run.stderr
     shown = _run([*dvc, "exp", "show", "--json"], workdir)
     assert shown.returncode == 0 and "2.5" in shown.stdout
+    # A queued one runs in DVC's queue workers, in their own copies.
+    queued = _run(
+        [*dvc, "exp", "run", "--queue", "-S", "scenario.box_mass=7.5", "scene@tiny"], workdir
+    )
+    assert queued.returncode == 0, queued.stderr
+    assert _run([*dvc, "exp", "run", "--run-all"], workdir).returncode == 0
+    status = _run([*dvc, "queue", "status"], workdir)
+    assert "Success" in status.stdout and "Failed" not in status.stdout, status.stdout
