@@ -11,6 +11,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from threadpoolctl import threadpool_limits
+
 from locoman.errors import ConfigError, LocomanError
 
 DATA_DIR = Path("data")
@@ -135,8 +137,13 @@ def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
         sys.exit(2)
     _staging = {}
     done = False
+    # One BLAS / OpenMP thread: a threaded reduction sums in an order that depends on the
+    # machine's core count, so outputs would differ between machines. The variable reaches
+    # the libraries loaded later (CasADi's OpenBLAS, with MUMPS), the limit those loaded.
+    os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = "1"
     try:
-        out = Path(main(*argv))
+        with threadpool_limits(limits=1):
+            out = Path(main(*argv))
         done = True
     except LocomanError as exc:
         print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -89,3 +90,23 @@ def test_the_dvc_plots_stay_small_enough_to_open(repo):
     for name in files:
         rows = (repo / name).read_text().count("\n") - 1
         assert 0 < rows <= 1000, (name, rows)
+
+
+def test_a_stage_runs_on_one_blas_thread_whatever_the_machine(data, monkeypatch):
+    """A threaded BLAS reduction sums in an order set by the core count (the KMP fit
+    differed in the 8th digit between 1 and 2 threads), so stages run on one thread."""
+    import numpy  # noqa: F401  (loads OpenBLAS, the library to limit)
+    from threadpoolctl import threadpool_info
+
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "4")
+    monkeypatch.setenv("OMP_NUM_THREADS", "4")
+    seen = {}
+
+    def main(scenario):
+        seen["threads"] = {i["internal_api"]: i["num_threads"] for i in threadpool_info()}
+        seen["env"] = (os.environ["OPENBLAS_NUM_THREADS"], os.environ["OMP_NUM_THREADS"])
+        return stage.stage_dir(scenario, "solve")
+
+    stage.run_stage(main, ["demo"])
+    assert seen["env"] == ("1", "1")
+    assert seen["threads"] and set(seen["threads"].values()) == {1}
