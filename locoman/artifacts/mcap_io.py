@@ -160,27 +160,13 @@ def write_mcap(
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         writer = Writer(fh)
         writer.start(profile="", library="locoman")
-        channels: dict[str, int] = {}
+        schemas: dict[str, dict[str, Any]] = {}  # topic -> JSON schema (its title names it)
         if frames:
-            schema_id = writer.register_schema(
-                name="foxglove.FrameTransforms",
-                encoding="jsonschema",
-                data=json.dumps(FRAME_TRANSFORMS_SCHEMA).encode(),
-            )
-            channels[tf_topic] = writer.register_channel(
-                topic=tf_topic, message_encoding="json", schema_id=schema_id
-            )
+            schemas[tf_topic] = FRAME_TRANSFORMS_SCHEMA
         if entities:
-            schema_id = writer.register_schema(
-                name="foxglove.SceneUpdate",
-                encoding="jsonschema",
-                data=json.dumps(SCENE_UPDATE_SCHEMA).encode(),
-            )
-            channels[SCENE_TOPIC] = writer.register_channel(
-                topic=SCENE_TOPIC, message_encoding="json", schema_id=schema_id
-            )
+            schemas[SCENE_TOPIC] = SCENE_UPDATE_SCHEMA
         for topic, named in signals.items():
-            schema = {
+            schemas[topic] = {
                 "title": f"locoman{topic.replace('/', '.')}",
                 "type": "object",
                 "properties": {
@@ -190,6 +176,8 @@ def write_mcap(
                     for n, v in named.items()
                 },
             }
+        channels: dict[str, int] = {}
+        for topic, schema in schemas.items():
             schema_id = writer.register_schema(
                 name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
             )
