@@ -117,6 +117,11 @@ VIDEO_FPS = 30.0  # [1/s]
 VIDEO_SIZE = (640, 480)  # width, height [px]
 
 
+def video_step(dt: float, fps: float) -> int:
+    """Log steps per video frame: the nearest whole number to 1 / (``fps`` ``dt``)."""
+    return max(1, round(1.0 / (fps * dt)))
+
+
 def replay_frames(
     model: mujoco.MjModel, qpos: np.ndarray, dt: float, fps: float, size: tuple[int, int]
 ) -> Iterator[np.ndarray]:
@@ -128,7 +133,7 @@ def replay_frames(
     cam = mujoco.MjvCamera()
     cam.distance, cam.elevation, cam.azimuth = 2.5, -25.0, 135.0
     with mujoco.Renderer(model, height=height, width=width) as renderer:
-        for q in qpos[:: max(1, round(1.0 / (fps * dt)))]:
+        for q in qpos[:: video_step(dt, fps)]:
             data.qpos[:] = q
             mujoco.mj_forward(model, data)
             cam.lookat[:] = data.xpos[arm_base] + np.array([0.0, 0.0, 0.3])
@@ -153,7 +158,7 @@ def write_replay(
     t = log.time_s[sl]
     frames = body_frames(model, log.qpos[sl])
     entities = scene_entities(model, log.qpos[0], moving=set(frames))
-    fps = 1.0 / (dt * max(1, round(1.0 / (VIDEO_FPS * dt))))
+    fps = 1.0 / (dt * video_step(dt, VIDEO_FPS))  # the frames' true rate
     write_mp4(
         out / f"replay_{name}.mp4", replay_frames(model, log.qpos, dt, VIDEO_FPS, VIDEO_SIZE), fps
     )
