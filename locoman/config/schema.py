@@ -16,6 +16,7 @@ from locoman.config.contacts import ContactsCfg
 from locoman.config.perception import PerceptionCfg
 from locoman.config.retarget import RetargetCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
+from locoman.config.figures import FiguresCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.stage import SCENARIO_NAME_RULE, valid_scenario_name
 
@@ -211,6 +212,7 @@ class RootCfg:
     retarget: RetargetCfg = field(default_factory=RetargetCfg)
     solve: SolveCfg = field(default_factory=SolveCfg)
     evaluate: EvaluateCfg = field(default_factory=EvaluateCfg)
+    figures: FiguresCfg = field(default_factory=FiguresCfg)
 
     def check(self) -> list[tuple[str, str]]:
         errors = [] if self.seed >= 0 else [("seed", "must be >= 0")]
@@ -227,6 +229,9 @@ class RootCfg:
         for name in self.solve.scenarios:
             if name not in self.perception.scenarios:
                 errors.append(("solve.scenarios", f"{name!r} is not a perception scenario"))
+        for name in self.figures.scenarios:
+            if name not in self.solve.scenarios:
+                errors.append(("figures.scenarios", f"{name!r} is not a solve scenario"))
         return errors
 
 

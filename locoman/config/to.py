@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from locoman.contact.io import CONTACT_FIELDS
 from locoman.to.collision import CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.problem import ContactCfg
@@ -26,6 +27,8 @@ class SolveCfg:
             :mod:`locoman.to.schedule` knows).
         keyframe_base: Keyframe base cost (9) on.
         keyframe_foot: Keyframe foot cost (10) on.
+        contacts: Where the hands hold the object: ``registration`` (the transferred
+            contacts, Sec. III-A.2) or ``naive`` (the geometry-unaware baseline, Sec. V-B).
         schedule: Node counts of the contact schedule.
         contact: Contact parameters.
         collision: Collision terms (Sec. IV-D).
@@ -37,12 +40,18 @@ class SolveCfg:
     scenarios: list[str] = field(default_factory=lambda: ["tiny"])
     keyframe_base: bool = True
     keyframe_foot: bool = True
+    contacts: str = "registration"
     schedule: ScheduleCfg = field(default_factory=ScheduleCfg)
     contact: ContactCfg = field(default_factory=ContactCfg)
     collision: CollisionCfg = field(default_factory=CollisionCfg)
     weights: CostWeights = field(default_factory=CostWeights)
     solver: SolverCfg = field(default_factory=SolverCfg)
     cache_dir: str = ".cache/casadi"
+
+    def check(self) -> list[tuple[str, str]]:
+        if self.contacts not in CONTACT_FIELDS:
+            return [("contacts", f"must be one of {sorted(CONTACT_FIELDS)}")]
+        return []
 
 
 @dataclass

@@ -24,7 +24,7 @@ PLOTS_DIR = "plots"
 
 CONTACTS = ArtifactSchema(
     "contact.transfer",
-    1,
+    2,
     "contacts",
     (
         Field("method", "str", (), "-", "registration or naive"),
@@ -35,6 +35,9 @@ CONTACTS = ArtifactSchema(
         Field("points_object_m", "float64", ("C", 3), "m", "L in the object frame"),
         Field("normals_world", "float64", ("C", 3), "-", "outward surface normals at L"),
         Field("raw_points_world_m", "float64", ("C", 3), "m", "L before surface projection"),
+        # Sec. V-B's geometry-unaware baseline, kept beside L for the TO's ablations.
+        Field("naive_points_object_m", "float64", ("C", 3), "m", "naive contacts, object frame"),
+        Field("naive_normals_world", "float64", ("C", 3), "-", "normals nearest to them"),
         Field("T_world_object", "float64", (4, 4), "m", "the object's pose in the scene"),
         Field("T_world_gen", "float64", (4, 4), "m", "registration: gen -> world (similarity)"),
         Field("scale", "float64", (), "-", "scale of T_world_gen"),
@@ -47,6 +50,14 @@ CONTACTS = ArtifactSchema(
         Field("pool_scores", "float64", ("S", "N"), "-", "cosine scores of the candidates"),
     ),
 )
+
+# Which fields hold each method's contact locations L (object frame) and normals (world):
+# the TO's ``solve.contacts`` picks one. ``naive`` is the geometry-unaware baseline of
+# Sec. V-B (the top-1 semantic match lifted with D_s, not projected onto the surface).
+CONTACT_FIELDS = {
+    "registration": ("points_object_m", "normals_world"),
+    "naive": ("naive_points_object_m", "naive_normals_world"),
+}
 
 
 def subtask_file(contacts_dir: Path, index: int) -> Path:

@@ -94,6 +94,9 @@ def write_transfer(
             "points_object_m": r.points_world @ T_object_world[:3, :3].T + T_object_world[:3, 3],
             "normals_world": r.normals_world,
             "raw_points_world_m": r.raw_points_world,
+            "naive_points_object_m": r.naive_world @ T_object_world[:3, :3].T
+            + T_object_world[:3, 3],
+            "naive_normals_world": r.naive_normals_world,
             "T_world_object": inputs.T_world_object,
             "T_world_gen": reg.transform,
             "scale": np.array(decompose_similarity(reg.transform)[0]),

@@ -91,6 +91,7 @@ class Transfer:
         surfaces: ``object`` or ``floor`` per contact.
         raw_points_world: (C, 3) L before the surface projection [m].
         naive_world: (C, 3) the naive baseline's contacts [m].
+        naive_normals_world: (C, 3) outward normals of the surface nearest to them.
         registration: The best hypothesis (it also places the human for ``naive``).
         T_world_pelvis: The human's pelvis placed in the scene.
         pool: The semantic score pool.
@@ -103,6 +104,7 @@ class Transfer:
     surfaces: list[str]
     raw_points_world: np.ndarray
     naive_world: np.ndarray
+    naive_normals_world: np.ndarray
     registration: Registration
     T_world_pelvis: np.ndarray
     pool: semantic.ScorePool
@@ -271,14 +273,25 @@ def transfer_subtask(
     T_world_pelvis = np.eye(4)
     T_world_pelvis[:3, :3] = rot @ inputs.T_cam_pelvis[:3, :3]
     T_world_pelvis[:3, 3] = apply(T, pelvis[None])[0]
+    naive_normals = _naive_normals(naive, inputs)
     if cfg.method == "naive":
         raw = naive
-        points, normals, surfaces = naive, _naive_normals(naive, inputs), ["object"] * len(naive)
+        points, normals, surfaces = naive, naive_normals, ["object"] * len(naive)
     else:
         raw = apply(reg.affine, lifted)
         points, normals, surfaces = project_contacts(raw, inputs.effectors, inputs)
     return Transfer(
-        points, normals, surfaces, raw, naive, reg, T_world_pelvis, pool, lifted, anchor
+        points,
+        normals,
+        surfaces,
+        raw,
+        naive,
+        naive_normals,
+        reg,
+        T_world_pelvis,
+        pool,
+        lifted,
+        anchor,
     )
 
 

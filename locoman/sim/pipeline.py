@@ -128,8 +128,12 @@ def all_finite(traj: dict[str, np.ndarray]) -> bool:
     )
 
 
-def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: EvaluateCfg) -> dict:
-    """Replay, check, and write the metrics and plots; returns the metrics."""
+def evaluate_scenario(
+    scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: EvaluateCfg, media: bool = True
+) -> dict:
+    """Replay, check, and write the metrics and the penetration curve, and with ``media``
+    the filmstrip and the MP4 (a grid's cells leave them out: rendering is most of the
+    evaluation's time); returns the metrics."""
     traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
     model = load_scene_model(scene_dir)
     name = str(traj["object_name"])
@@ -199,7 +203,8 @@ def evaluate_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Eval
     for k, (t, p) in enumerate(zip(time, per_node, strict=True)):
         writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
     write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
-    write_png(out_dir / "plots" / "filmstrip.png", filmstrip(model, traj, cfg.filmstrip_frames))
-    write_mp4(out_dir / VIDEO_FILE, motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE), VIDEO_FPS)
+    if media:
+        write_png(out_dir / "plots" / "filmstrip.png", filmstrip(model, traj, cfg.filmstrip_frames))
+        write_mp4(out_dir / VIDEO_FILE, motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE), VIDEO_FPS)
     write_metrics(out_dir, metrics)
     return metrics

@@ -11,7 +11,7 @@ import numpy as np
 from locoman.artifacts import read_npz, write_metrics, write_npz
 from locoman.artifacts.mcap_io import write_frame_transforms
 from locoman.config.to import SolveCfg
-from locoman.contact.io import CONTACTS
+from locoman.contact.io import CONTACT_FIELDS, CONTACTS
 from locoman.contact.io import subtask_file as contact_file
 from locoman.errors import ArtifactError
 from locoman.retarget.io import KEYFRAME, keyframe_file
@@ -60,9 +60,13 @@ def contact_frame(normal: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(n, x), n])
 
 
-def load_inputs(scene_dir: Path, contacts_dir: Path, retarget_dir: Path) -> TOInputs:
+def load_inputs(
+    scene_dir: Path, contacts_dir: Path, retarget_dir: Path, contacts: str = "registration"
+) -> TOInputs:
     """The TO's view of a scenario. The hands hold the object from the first subtask that
-    touches it to the end, at that subtask's transferred contacts."""
+    touches it to the end, at that subtask's contacts of the method ``contacts`` (a key of
+    :data:`CONTACT_FIELDS`)."""
+    points_field, normals_field = CONTACT_FIELDS[contacts]
     plan = load_plan(scene_dir)
     name = manipulated_object(plan)
     spec = load_objects(scene_dir)[name]
@@ -85,8 +89,8 @@ def load_inputs(scene_dir: Path, contacts_dir: Path, retarget_dir: Path) -> TOIn
     if missing:
         raise ArtifactError(f"contacts of subtask {first['index']} lack {missing}")
     rows = [effectors.index(h) for h in HANDS]
-    points = contacts["points_object_m"][rows]
-    frames = np.array([contact_frame(R.T @ contacts["normals_world"][r]) for r in rows])
+    points = contacts[points_field][rows]
+    frames = np.array([contact_frame(R.T @ contacts[normals_field][r]) for r in rows])
     obstacles = obstacles_from_objects(load_objects(scene_dir))
     return TOInputs(
         start_configuration(scene_dir), start, obj, keyframes, points, frames, obstacles
@@ -134,7 +138,7 @@ def solve_scenario(
 ) -> Trajectory:
     """Build and solve the TO; write the trajectory, its MCAP and the solver's metrics. A
     failed solve is written too, with its status."""
-    inputs = load_inputs(scene_dir, contacts_dir, retarget_dir)
+    inputs = load_inputs(scene_dir, contacts_dir, retarget_dir, cfg.contacts)
     optimizer = build_optimizer(inputs, cfg)
     traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
     write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir)

@@ -98,6 +98,8 @@ class SolverCfg:
         print_level: IPOPT's print level (5: one line per iteration, the progress).
         warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
             every node starts at the initial state.
+        max_wall_time_s: IPOPT's max_wall_time [s]: a solve stopped by it is a failed solve
+            (status ``Maximum_WallTime_Exceeded``); None: no limit. The grids' time limit.
         hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
             ``gauss_newton`` (default): the costs' exact Hessian, the penalties' Gauss-Newton
             one, and none of the constraints' second derivatives; ``exact``: with the
@@ -117,6 +119,7 @@ class SolverCfg:
     compile_flags: list[str] = dataclasses.field(default_factory=lambda: ["-O1"])
     print_level: int = 5
     warm_start: bool = True
+    max_wall_time_s: float | None = None
     hessian: str = "gauss_newton"
 
     def check(self) -> list[tuple[str, str]]:
@@ -131,6 +134,8 @@ class SolverCfg:
             errors.append(("print_level", "IPOPT's print level is 0..12"))
         if self.backend not in BACKENDS:
             errors.append(("backend", f"must be one of {sorted(BACKENDS)}"))
+        if self.max_wall_time_s is not None and not self.max_wall_time_s > 0.0:
+            errors.append(("max_wall_time_s", "must be > 0 s, or null for no limit"))
         if self.hessian not in HESSIANS:
             errors.append(("hessian", f"must be one of {list(HESSIANS)}"))
         return errors
@@ -452,6 +457,8 @@ class TrajectoryOptimizer:
             "mu_strategy": "adaptive",
             "fixed_variable_treatment": "make_parameter",
         }
+        if solver.max_wall_time_s is not None:
+            ipopt["max_wall_time"] = float(solver.max_wall_time_s)
         self.nlp = StageNLP(
             WIDTH,
             n,

@@ -1,0 +1,280 @@
+"""One cell of a figure's grid: rebuild the scene, solve, evaluate, record.
+
+A cell reads the pipeline's parameters (``params.yaml``) and its upstream artifacts under
+``data/<scenario>/`` (``contacts/subtasks``, ``retarget/keyframes``, ``scene``), and changes
+only what the cell names: the box mass [kg] and the initial yaw [rad] (the scene is rebuilt
+with them) and the run's switches (:mod:`locoman.grid.runs`). The upstream stages read the
+objects' geometry and poses and the plan, which neither knob changes; a cell checks that and
+refuses otherwise, so reused keyframes always belong to the cell's scene.
+
+Layout, per cell, under ``data/<scenario>/grid/<figure>/<cell>/``::
+
+    cell.json              the record: status, reason, key, the figures' numbers
+    log.txt                what the solve printed (IPOPT's iterations)
+    scene/ solve/ evaluate/    the stages' usual outputs (no filmstrip, no MP4)
+
+The record is written last, and the cell's folder is swapped in whole: a killed cell leaves
+its previous result or none. A cell whose key (a hash of everything it reads: the cell, its
+parameters, the upstream files, locoman's code) matches its record is skipped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import shutil
+import sys
+import time
+import traceback
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import locoman
+from locoman.artifacts import write_json_atomic
+from locoman.config.schema import RootCfg, ScenarioCfg
+from locoman.config.to import EvaluateCfg, SolveCfg
+from locoman.errors import ArtifactError, ConfigError
+from locoman.grid.runs import Run, find_run
+from locoman.scene.builder import build_scene
+from locoman.scene.io import write_scene
+from locoman.sim.pipeline import evaluate_scenario
+from locoman.stage import valid_scenario_name
+from locoman.to.pipeline import solve_scenario
+
+RECORD_FILE = "cell.json"
+LOG_FILE = "log.txt"
+# The upstream outputs a cell reads, under data/<scenario>/.
+UPSTREAM = ("scene/objects.json", "scene/plan.json", "contacts/subtasks", "retarget/keyframes")
+# locoman's code a cell runs (relative to the package): a change reruns every cell.
+CODE = ("to", "sim", "scene", "grid", "artifacts", "config", "contact/io.py", "retarget/io.py")
+# Statuses of a record: the TO converged, it stopped without converging (iteration or time
+# limit, infeasibility: IPOPT's status says which), or the cell could not run (the reason).
+STATUSES = ("converged", "not_converged", "error")
+
+
+@dataclasses.dataclass(frozen=True)
+class CellCfg:
+    """One cell of a grid (the Hydra app's ``cell`` section).
+
+    Attributes:
+        scenario: A humanoid scenario with upstream artifacts under ``data/<scenario>/``.
+        figure: ``fig5`` or ``fig6`` (:data:`locoman.grid.runs.FIGURE_RUNS`).
+        run: One of the figure's runs.
+        box_mass: Mass of the object named ``box`` [kg].
+        initial_yaw: The robot's initial yaw [rad].
+    """
+
+    scenario: str = "tiny"
+    figure: str = "fig6"
+    run: str = "all"
+    box_mass: float = 5.0
+    initial_yaw: float = 0.0
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if not valid_scenario_name(self.scenario):
+            errors.append(("scenario", f"{self.scenario!r} is not a scenario name"))
+        try:
+            find_run(self.figure, self.run)
+        except ConfigError as exc:
+            errors.append(("run", str(exc)))
+        if not (math.isfinite(self.box_mass) and self.box_mass > 0.0):
+            errors.append(("box_mass", f"must be finite and > 0 kg, got {self.box_mass}"))
+        if not (math.isfinite(self.initial_yaw) and abs(self.initial_yaw) <= math.pi):
+            errors.append(("initial_yaw", f"must be in [-pi, pi] rad, got {self.initial_yaw}"))
+        return errors
+
+    @property
+    def name(self) -> str:
+        """The cell's folder: ``<run>_m<mass>_yaw<yaw>``, e.g. ``all_m5_yaw+0.6``."""
+        return f"{self.run}_m{self.box_mass:g}_yaw{self.initial_yaw:+g}"
+
+
+def cell_dir(data_dir: Path, cell: CellCfg) -> Path:
+    """``<data_dir>/<scenario>/grid/<figure>/<cell>/``."""
+    return Path(data_dir) / cell.scenario / "grid" / cell.figure / cell.name
+
+
+def read_record(folder: Path) -> dict[str, Any] | None:
+    """A cell's record, or None when it has none (never ran, or was killed)."""
+    try:
+        return json.loads((Path(folder) / RECORD_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def cell_scenario(scenario: ScenarioCfg, cell: CellCfg) -> ScenarioCfg:
+    """The scenario with the cell's knobs: the mass of the object named ``box`` and the
+    robot's initial yaw (``scenario.box_mass`` and ``scenario.initial_yaw`` in conf/)."""
+    objects = dict(scenario.objects)
+    if "box" in objects:
+        objects["box"] = dataclasses.replace(objects["box"], mass=cell.box_mass)
+    start = dataclasses.replace(scenario.start, yaw=cell.initial_yaw)
+    return dataclasses.replace(scenario, objects=objects, start=start)
+
+
+def _files(root: Path, entries: tuple[str, ...]) -> list[Path]:
+    out = []
+    for entry in entries:
+        path = root / entry
+        out += sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    return out
+
+
+def cell_key(
+    cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, evaluate: EvaluateCfg, upstream: Path
+) -> str:
+    """SHA-256 of everything the cell reads: the cell, its parameters (not where the
+    compiled TO is cached), the upstream files and locoman's code.
+
+    Raises:
+        ArtifactError: An upstream output is missing (run the pipeline up to ``retarget``).
+    """
+    digest = hashlib.sha256()
+    settings = {
+        "cell": dataclasses.asdict(cell),
+        "scenario": dataclasses.asdict(scenario),
+        "solve": {k: v for k, v in dataclasses.asdict(solve).items() if k != "cache_dir"},
+        "evaluate": dataclasses.asdict(evaluate),
+    }
+    digest.update(json.dumps(settings, sort_keys=True, default=str).encode())
+    package = Path(locoman.__file__).parent
+    code = [p for p in _files(package, CODE) if p.suffix == ".py"]
+    missing = [e for e in UPSTREAM if not (upstream / e).exists()]
+    if missing:
+        raise ArtifactError(
+            f"the grid's cells reuse {upstream}/{{{', '.join(missing)}}}, which do not exist: "
+            f"run `dvc repro retarget@{cell.scenario}` first"
+        )
+    for path in [*_files(upstream, UPSTREAM), *code]:
+        digest.update(str(path.relative_to(path.parents[1])).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def check_same_world(cell_scene: Path, upstream_scene: Path) -> None:
+    """The cell's objects and plan are the upstream's but for masses.
+
+    Raises:
+        ConfigError: They differ: the upstream keyframes would belong to another scene.
+    """
+    same_plan = (cell_scene / "plan.json").read_bytes() == (upstream_scene / "plan.json").read_bytes()
+    ours = json.loads((cell_scene / "objects.json").read_text())["objects"]
+    theirs = json.loads((upstream_scene / "objects.json").read_text())["objects"]
+
+    def strip(objects: dict[str, Any]) -> dict[str, Any]:
+        return {n: {k: v for k, v in s.items() if k != "mass_kg"} for n, s in objects.items()}
+
+    if not same_plan or strip(ours) != strip(theirs):
+        raise ConfigError(
+            f"the cell's scene differs from {upstream_scene} in more than the box mass and the "
+            "initial yaw, so its contacts and keyframes do not apply: rerun the pipeline with "
+            "the new parameters (`dvc repro retarget`) before the grid"
+        )
+
+
+@contextlib.contextmanager
+def output_to(path: Path) -> Iterator[None]:
+    """Send what this process prints to ``path``: Python's ``sys.stdout`` / ``sys.stderr``
+    (whatever they are, a test's capture included) and file descriptors 1 and 2 (IPOPT's C
+    output)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    with open(path, "w", buffering=1) as log:
+        os.dup2(log.fileno(), 1)
+        os.dup2(log.fileno(), 2)
+        try:
+            with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
+                yield
+        finally:
+            log.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            os.close(saved[0])
+            os.close(saved[1])
+
+
+def _solve_and_evaluate(
+    cfg: RootCfg, cell: CellCfg, run: Run, upstream: Path, out: Path
+) -> dict[str, Any]:
+    """The cell's scene, solve and evaluation into ``out``; the record's numbers."""
+    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
+    write_scene(out / "scene", build_scene(cell.scenario, scenario, (64, 48)))
+    check_same_world(out / "scene", upstream / "scene")
+    solve = run.apply(cfg.solve)
+    traj = solve_scenario(
+        out / "scene", upstream / "contacts", upstream / "retarget", out / "solve", solve
+    )
+    metrics = evaluate_scenario(out / "scene", out / "solve", out / "evaluate", cfg.evaluate, False)
+    return {
+        "status": "converged" if traj.success else "not_converged",
+        "reason": "" if traj.success else traj.status,
+        "solver_status": traj.status,
+        "iterations": traj.iterations,
+        "solve_time_s": traj.solve_time_s,
+        "avg_penetration_m": metrics["avg_penetration_m"],
+        "max_penetration_m": metrics["max_penetration_m"],
+        "max_penetration_pair": metrics["max_penetration_pair"],
+        "dynamics_residual_max": metrics["dynamics_residual_max"],
+        "object_goal_error_m": metrics["object_goal_error_m"],
+        "success": metrics["success"],
+        "failed_checks": metrics["failed_checks"],
+    }
+
+
+def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict[str, Any]:
+    """Run one cell unless its record is up to date; return its record.
+
+    Whatever goes wrong inside (a solver failure, a time limit, an infeasible input, a bug)
+    is recorded as the cell's status and reason, and the function returns: a grid goes on.
+    Only a cell that cannot be named (bad configuration) or keyed (missing upstream) raises.
+
+    Raises:
+        ConfigError: The cell's settings are invalid or the scenario is unknown.
+        ArtifactError: The upstream artifacts are missing.
+    """
+    errors = cell.check()
+    if cell.scenario not in cfg.scenarios:
+        errors.append(("scenario", f"unknown; known: {sorted(cfg.scenarios)}"))
+    if errors:
+        raise ConfigError("; ".join(f"cell.{k}: {msg}" for k, msg in errors))
+    run = find_run(cell.figure, cell.run)
+    upstream = Path(data_dir) / cell.scenario
+    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
+    key = cell_key(cell, scenario, run.apply(cfg.solve), cfg.evaluate, upstream)
+    final = cell_dir(data_dir, cell)
+    previous = read_record(final)
+    if previous is not None and previous.get("key") == key:
+        return {**previous, "skipped": True}
+    staging = final.with_name(f".{final.name}.staging")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    tic = time.perf_counter()
+    with output_to(staging / LOG_FILE):
+        try:
+            numbers = _solve_and_evaluate(cfg, cell, run, upstream, staging)
+        except Exception as exc:  # a grid records every failure and goes on
+            traceback.print_exc()
+            numbers = {"status": "error", "reason": f"{type(exc).__name__}: {exc}"}
+    record = {
+        **dataclasses.asdict(cell),
+        "label": run.label,
+        # JSON has no NaN: a non-finite number (a diverged solve) is recorded as null.
+        **{k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in numbers.items()},
+        "wall_time_s": time.perf_counter() - tic,
+        "key": key,
+    }
+    write_json_atomic(staging / RECORD_FILE, record)
+    old = final.with_name(f".{final.name}.old")
+    shutil.rmtree(old, ignore_errors=True)
+    if final.exists():
+        final.rename(old)
+    staging.rename(final)
+    shutil.rmtree(old, ignore_errors=True)
+    return {**record, "skipped": False}

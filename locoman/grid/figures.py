@@ -1,0 +1,186 @@
+"""Paper A's Fig. 5 and Fig. 6 and their summary, drawn from the cells' records.
+
+- Fig. 5 (Sec. V-A, V-B): total penetration per node of the TO, replayed in MuJoCo, for
+  the four runs of :data:`~locoman.grid.runs.PIPELINE_RUNS`; left panel ours against naive
+  with the minimal collision set, right panel ours against the geometry-unaware contacts
+  with every collision term off.
+- Fig. 6 (Sec. V-C): one panel per (box mass, initial yaw); one bar per keyframe setting,
+  its average penetration (the sum over nodes / nodes); hatched where the TO did not
+  converge, a triangle at the axis bound where the bar is cut, an ``x`` where the cell
+  could not run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from locoman.grid.runs import KEYFRAME_RUNS, PIPELINE_RUNS
+
+# Paper A's colours where it names them: ours blue, naive red (Fig. 5); NoKeyframe grey and
+# AllKeyframe pink (Fig. 6).
+FIG5_COLOURS = {
+    "ours": "tab:blue",
+    "naive": "tab:red",
+    "ours_no_collision": "tab:blue",
+    "geometry_unaware": "tab:red",
+}
+FIG6_COLOURS = {
+    "none": "tab:grey",
+    "base": "tab:orange",
+    "foot": "tab:green",
+    "warm": "tab:cyan",
+    "base_foot": "tab:olive",
+    "base_warm": "tab:purple",
+    "foot_warm": "tab:brown",
+    "all": "tab:pink",
+}
+# The summary's columns, in order.
+SUMMARY_COLUMNS = (
+    "figure",
+    "run",
+    "label",
+    "box_mass",
+    "initial_yaw",
+    "status",
+    "reason",
+    "iterations",
+    "avg_penetration_m",
+    "max_penetration_m",
+    "max_penetration_pair",
+    "dynamics_residual_max",
+    "object_goal_error_m",
+    "success",
+)
+
+
+def fig5(records: dict[str, dict[str, Any]], curves: dict[str, np.ndarray], title: str) -> Figure:
+    """Fig. 5 of one scenario.
+
+    Args:
+        records: Run name -> the cell's record.
+        curves: Run name -> (N, 2) time [s] and total penetration [m] per node.
+        title: The figure's title.
+    """
+    fig = Figure(figsize=(11, 4), layout="constrained")
+    fig.suptitle(title)
+    panels = (
+        ("V-A: minimal collision set", ("ours", "naive")),
+        ("V-B: no collision terms", ("ours_no_collision", "geometry_unaware")),
+    )
+    labels = {r.name: r.label for r in PIPELINE_RUNS}
+    for ax, (name, runs) in zip(fig.subplots(1, 2, sharey=True), panels, strict=True):
+        for run in runs:
+            record = records.get(run)
+            if record is None or run not in curves:
+                why = record["reason"] if record else "not run"
+                ax.plot([], [], color=FIG5_COLOURS[run], label=f"{labels[run]}: {why}")
+                continue
+            t, pen = curves[run].T
+            converged = "" if record["status"] == "converged" else " (not converged)"
+            style = "-" if run in ("ours", "ours_no_collision") else "--"
+            ax.plot(t, pen * 1000, style, color=FIG5_COLOURS[run], label=labels[run] + converged)
+        ax.set_title(name)
+        ax.set_xlabel("time [s]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.axes[0].set_ylabel("total penetration at the node [mm]")
+    return fig
+
+
+def _cell_panels(records: Sequence[dict[str, Any]]) -> list[tuple[float, float]]:
+    return list(dict.fromkeys((r["box_mass"], r["initial_yaw"]) for r in records))
+
+
+def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figure:
+    """Fig. 6 of one scenario: a panel per (mass, yaw), a bar per keyframe setting."""
+    panels = _cell_panels(records)
+    cols = min(len(panels), 3)
+    rows = math.ceil(len(panels) / cols)
+    fig = Figure(figsize=(4.2 * cols, 3.2 * rows + 0.8), layout="constrained")
+    fig.suptitle(title)
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharey=True, squeeze=False)).ravel()
+    by_cell = {(r["box_mass"], r["initial_yaw"], r["run"]): r for r in records}
+    bound_mm = bound_m * 1000
+    for ax, (mass, yaw) in zip(axes, panels, strict=False):
+        for k, run in enumerate(KEYFRAME_RUNS):
+            record = by_cell.get((mass, yaw, run.name))
+            colour = FIG6_COLOURS[run.name]
+            if record is None or record["status"] == "error" or record["avg_penetration_m"] is None:
+                ax.plot(k, 0.0, "x", color=colour, ms=9, mew=2)
+                continue
+            value = record["avg_penetration_m"] * 1000
+            hatch = None if record["status"] == "converged" else "//"
+            ax.bar(k, min(value, bound_mm), color=colour, hatch=hatch, edgecolor="black", lw=0.5)
+            if value > bound_mm:
+                ax.plot(k, bound_mm, "^", color="black", ms=8)
+        ax.set_title(f"({mass:g} kg, {yaw:g} rad)")
+        ax.set_ylim(0.0, bound_mm * 1.08)
+        ax.set_xticks(range(len(KEYFRAME_RUNS)), [""] * len(KEYFRAME_RUNS))
+        ax.grid(axis="y", alpha=0.3)
+    for ax in axes[len(panels) :]:
+        ax.set_visible(False)
+    for ax in axes[::cols]:
+        ax.set_ylabel("average penetration [mm]")
+    handles = [Patch(color=FIG6_COLOURS[r.name], label=r.label) for r in KEYFRAME_RUNS]
+    handles += [
+        Patch(facecolor="white", edgecolor="black", hatch="//", label="not converged"),
+        Line2D([], [], ls="", marker="^", color="black", label="beyond the axis bound"),
+        Line2D([], [], ls="", marker="x", color="black", label="could not run"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncols=6, fontsize=8)
+    return fig
+
+
+def summary_csv(records: Sequence[dict[str, Any]]) -> str:
+    """One row per run: :data:`SUMMARY_COLUMNS`."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(SUMMARY_COLUMNS)
+    for record in records:
+        writer.writerow([_cell_text(record.get(c)) for c in SUMMARY_COLUMNS])
+    return buffer.getvalue()
+
+
+def _cell_text(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, list):
+        return " / ".join(map(str, value))
+    return str(value)
+
+
+def _mm(value: float | None) -> str:
+    return "-" if value is None else f"{value * 1000:.1f}"
+
+
+def markdown_table(records: Sequence[dict[str, Any]]) -> str:
+    """The summary of one figure as a Markdown table (penetrations in mm)."""
+    head = (
+        "| run | mass [kg] | yaw [rad] | status | iterations | avg pen. [mm] | max pen. [mm] "
+        "| deepest pair | dynamics residual | goal error [mm] |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    rows = []
+    for r in records:
+        status = r["status"] + (f" ({r['reason']})" if r.get("reason") else "")
+        residual = r.get("dynamics_residual_max")
+        rows.append(
+            f"| {r['label']} | {r['box_mass']:g} | {r['initial_yaw']:g} | {status} "
+            f"| {r.get('iterations', '-')} | {_mm(r.get('avg_penetration_m'))} "
+            f"| {_mm(r.get('max_penetration_m'))} "
+            f"| {' / '.join(r.get('max_penetration_pair') or []) or '-'} "
+            f"| {'-' if residual is None else f'{residual:.1e}'} "
+            f"| {_mm(r.get('object_goal_error_m'))} |"
+        )
+    return head + "\n".join(rows) + "\n"

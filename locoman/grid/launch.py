@@ -1,0 +1,106 @@
+"""Launch a figure's grid as a Hydra multirun, built from ``params.yaml``.
+
+Usage: ``python -m locoman.grid <scenario> <figure> [hydra overrides ...]``
+
+The sweep comes from the ``figures`` section: Fig. 6 runs every keyframe setting at every
+(box mass, initial yaw) of ``figures.grids.<scenario>``; Fig. 5 runs its four pipeline
+variants at the scenario's configured mass and yaw (``scenario.box_mass``,
+``scenario.initial_yaw``). ``figures.launcher`` picks the launcher; trailing arguments go to
+Hydra as they are, e.g. ``hydra/launcher=submitit_slurm hydra.launcher.partition=cpu``.
+Cells whose inputs have not changed are skipped, so a grid that was stopped, or that ran on
+a cluster, finishes where it left off.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from locoman.config import load_params
+from locoman.config.schema import RootCfg
+from locoman.errors import ConfigError, LocomanError
+from locoman.grid.cell import CellCfg
+from locoman.grid.runs import FIGURE_RUNS
+
+
+def cells(cfg: RootCfg, scenario: str, figure: str) -> list[CellCfg]:
+    """The cells of ``figure`` for ``scenario``, in the figure's order (mass, yaw, run).
+
+    Raises:
+        ConfigError: An unknown figure, or a scenario without a grid.
+    """
+    if figure not in FIGURE_RUNS:
+        raise ConfigError(f"unknown figure {figure!r}; known: {sorted(FIGURE_RUNS)}")
+    if scenario not in cfg.figures.grids:
+        raise ConfigError(f"figures.grids has no {scenario!r}; add its grid in conf/figures/")
+    if figure == "fig5":
+        masses, yaws = [cfg.scenario.box_mass], [cfg.scenario.initial_yaw]
+    else:
+        grid = cfg.figures.grids[scenario]
+        masses, yaws = grid.box_mass, grid.initial_yaw
+    return [
+        CellCfg(scenario, figure, run.name, float(m), float(y))
+        for m in masses
+        for y in yaws
+        for run in FIGURE_RUNS[figure]
+    ]
+
+
+def _values(values: list) -> str:
+    return ",".join(dict.fromkeys(str(v) for v in values))
+
+
+def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str]) -> list[str]:
+    """The Hydra multirun that runs every cell of :func:`cells`, with ``extra`` overrides
+    last (they win)."""
+    todo = cells(cfg, scenario, figure)
+    launcher = [f"hydra/launcher={cfg.figures.launcher}"]
+    if cfg.figures.launcher == "joblib":
+        launcher.append(f"hydra.launcher.n_jobs={cfg.figures.n_jobs}")
+    return [
+        sys.executable,
+        "-m",
+        "locoman.grid.app",
+        "--multirun",
+        f"cell.scenario={scenario}",
+        f"cell.figure={figure}",
+        f"cell.run={_values([c.run for c in todo])}",
+        f"cell.box_mass={_values([c.box_mass for c in todo])}",
+        f"cell.initial_yaw={_values([c.initial_yaw for c in todo])}",
+        *launcher,
+        *extra,
+    ]
+
+
+def launch(
+    scenario: str, figure: str, extra: list[str] = (), params_file: str | Path = "params.yaml"
+) -> None:
+    """Run the grid (a subprocess: Hydra owns its process's logging and working state).
+
+    Raises:
+        ConfigError: Bad arguments.
+        LocomanError: The multirun itself failed (a cell's failure does not fail it).
+    """
+    cfg = load_params(params_file)
+    command = multirun_command(cfg, scenario, figure, list(extra))
+    if Path(params_file) != Path("params.yaml"):
+        command.append(f"params_file={params_file}")
+    print("[grid] " + " ".join(command[1:]), flush=True)
+    if subprocess.run(command).returncode != 0:
+        raise LocomanError(
+            f"the {figure} grid of {scenario} stopped (the Hydra multirun above failed; a "
+            "cell's own failure is recorded and does not stop it)"
+        )
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) < 2 or argv[0].startswith("-"):
+        print(__doc__, file=sys.stderr)
+        return 2
+    try:
+        launch(argv[0], argv[1], argv[2:])
+    except LocomanError as exc:
+        print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,137 @@
+"""Stage ``figures`` for one scenario: run both grids, then draw and summarise them.
+
+Outputs under ``data/<scenario>/figures/``::
+
+    fig5.png, fig6.png        paper A's Fig. 5 and Fig. 6
+    fig5/<run>.csv            Fig. 5's curves (node, time_s, penetration_m), for dvc plots
+    summary.csv               one row per run of both figures (figures.SUMMARY_COLUMNS)
+    summary.md                the same as two tables, and where the paper's claims stand
+    metrics.json              per-run numbers of Fig. 5, per-setting rates of Fig. 6, claims
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from locoman.artifacts import write_json_atomic, write_metrics, write_text_atomic
+from locoman.artifacts.io import write_figure
+from locoman.config.schema import RootCfg
+from locoman.errors import ArtifactError
+from locoman.grid.cell import cell_dir, read_record
+from locoman.grid.claims import claims_markdown, fig5_claims, fig6_claims
+from locoman.grid.figures import fig5, fig6, markdown_table, summary_csv
+from locoman.grid.launch import cells, launch
+from locoman.grid.runs import KEYFRAME_RUNS
+
+FIGURES = ("fig5", "fig6")
+
+
+def collect(cfg: RootCfg, scenario: str, figure: str, data_dir: Path) -> list[dict[str, Any]]:
+    """The records of every cell of the figure, in its order.
+
+    Raises:
+        ArtifactError: A cell has no record (the grid did not finish it).
+    """
+    records = []
+    for cell in cells(cfg, scenario, figure):
+        record = read_record(cell_dir(data_dir, cell))
+        if record is None:
+            raise ArtifactError(
+                f"{cell_dir(data_dir, cell)} has no record: run `python -m locoman.grid "
+                f"{scenario} {figure}` to finish the grid"
+            )
+        records.append(record)
+    return records
+
+
+def penetration_curve(folder: Path) -> np.ndarray | None:
+    """(N, 2) time [s] and penetration [m] per node from a cell's evaluation, if it ran."""
+    path = folder / "evaluate" / "plots" / "penetration.csv"
+    if not path.is_file():
+        return None
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    return np.array([[float(r["time_s"]), float(r["penetration_m"])] for r in rows])
+
+
+def _curve_csv(curve: np.ndarray) -> str:
+    lines = ["node,time_s,penetration_m"]
+    lines += [f"{k},{t:.6f},{p:.9f}" for k, (t, p) in enumerate(curve)]
+    return "\n".join(lines) + "\n"
+
+
+def figures_scenario(
+    cfg: RootCfg, scenario: str, out_dir: Path, data_dir: Path = Path("data")
+) -> dict[str, Any]:
+    """Run the grids of ``scenario`` (cells up to date are skipped), draw, summarise;
+    return the metrics."""
+    seconds = {}
+    for figure in FIGURES:
+        tic = time.perf_counter()
+        launch(scenario, figure)
+        seconds[figure] = time.perf_counter() - tic
+    records = {figure: collect(cfg, scenario, figure, data_dir) for figure in FIGURES}
+
+    runs5 = {r["run"]: r for r in records["fig5"]}
+    curves = {}
+    for cell in cells(cfg, scenario, "fig5"):
+        curve = penetration_curve(cell_dir(data_dir, cell))
+        if curve is not None:
+            curves[cell.run] = curve
+            write_text_atomic(out_dir / "fig5" / f"{cell.run}.csv", _curve_csv(curve))
+    mass, yaw = cfg.scenario.box_mass, cfg.scenario.initial_yaw
+    title5 = f"Paper A, Fig. 5: {scenario} ({mass:g} kg, {yaw:g} rad)"
+    write_figure(out_dir / "fig5.png", fig5(runs5, curves, title5))
+    bound = cfg.figures.grids[scenario].axis_bound_m
+    title6 = f"Paper A, Fig. 6: {scenario}, keyframe ablation (box mass, initial yaw)"
+    write_figure(out_dir / "fig6.png", fig6(records["fig6"], bound, title6))
+
+    claims = fig5_claims(runs5, cfg.evaluate) + fig6_claims(records["fig6"])
+    write_text_atomic(out_dir / "summary.csv", summary_csv(records["fig5"] + records["fig6"]))
+    write_text_atomic(
+        out_dir / "summary.md",
+        f"# {scenario}: paper A's Fig. 5 and Fig. 6\n\n"
+        "## Where the paper's claims stand\n\n"
+        f"{claims_markdown(claims)}\n"
+        f"## Fig. 5 ({mass:g} kg, {yaw:g} rad)\n\n{markdown_table(records['fig5'])}\n"
+        f"## Fig. 6\n\n{markdown_table(records['fig6'])}",
+    )
+    fig6_cells = len(records["fig6"]) // len(KEYFRAME_RUNS)
+    metrics = {
+        "fig5": {
+            r["run"]: {
+                "status": r["status"],
+                "avg_penetration_m": r.get("avg_penetration_m"),
+                "max_penetration_m": r.get("max_penetration_m"),
+            }
+            for r in records["fig5"]
+        },
+        "fig6": {
+            "cells": fig6_cells,
+            "converged_rate": {
+                run.name: sum(
+                    r["status"] == "converged" for r in records["fig6"] if r["run"] == run.name
+                )
+                / fig6_cells
+                for run in KEYFRAME_RUNS
+            },
+            "errors": sum(r["status"] == "error" for r in records["fig6"]),
+        },
+        "claims": {c.key: c.holds for c in claims},
+    }
+    write_metrics(out_dir, metrics)
+    write_json_atomic(
+        out_dir / "timing.json",
+        {
+            "grid_wall_time_s": seconds,
+            "cells_wall_time_s": {
+                f: sum(r.get("wall_time_s", 0.0) for r in records[f]) for f in FIGURES
+            },
+        },
+    )
+    return metrics

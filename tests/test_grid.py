@@ -1,0 +1,251 @@
+"""Paper A's figure grids (issue 22): the runs, the cells, the launch command, the claims
+and the figures, without solving (the end-to-end test runs real cells)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from locoman.config.figures import FiguresCfg, GridCfg
+from locoman.config.to import EvaluateCfg, SolveCfg
+from locoman.errors import ConfigError
+from locoman.grid.app import summary
+from locoman.grid.cell import (
+    RECORD_FILE,
+    CellCfg,
+    cell_dir,
+    cell_key,
+    cell_scenario,
+    check_same_world,
+    read_record,
+    run_cell,
+)
+from locoman.grid.claims import fig5_claims, fig6_claims
+from locoman.grid.figures import SUMMARY_COLUMNS, fig5, fig6, markdown_table, summary_csv
+from locoman.grid.launch import cells, multirun_command
+from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_run
+from locoman.scene.builder import build_scene
+from locoman.scene.io import write_scene
+from locoman.to.collision import KINDS
+
+
+def test_fig6_has_every_keyframe_combination_from_none_to_all():
+    switches = [(r.keyframe_base, r.keyframe_foot, r.warm_start) for r in KEYFRAME_RUNS]
+    assert len(set(switches)) == 8
+    assert switches[0] == (False, False, False) and KEYFRAME_RUNS[0].label == "NoKeyframe"
+    assert switches[-1] == (True, True, True) and KEYFRAME_RUNS[-1].label == "AllKeyframe"
+    assert all(r.contacts == "registration" and r.collisions for r in KEYFRAME_RUNS)
+
+
+def test_a_run_sets_only_its_switches():
+    solve = SolveCfg()
+    naive = find_run("fig5", "naive").apply(solve)
+    assert (naive.keyframe_base, naive.keyframe_foot, naive.solver.warm_start) == (False,) * 3
+    assert naive.contacts == "naive" and naive.collision == solve.collision
+    off = find_run("fig5", "geometry_unaware").apply(solve)
+    assert all(getattr(off.collision, k) == "off" for k in KINDS)
+    assert off.keyframe_base and off.solver.warm_start
+    assert solve.contacts == "registration" and solve.collision.object_body == "penalty"
+    assert dataclasses.replace(off, contacts="registration", collision=solve.collision) == solve
+
+
+def test_unknown_figures_and_runs_are_named():
+    with pytest.raises(ConfigError, match="known"):
+        find_run("fig7", "all")
+    with pytest.raises(ConfigError, match="ours"):
+        find_run("fig5", "all")
+
+
+def test_a_cell_checks_its_knobs_and_names_its_folder():
+    assert CellCfg("tiny", "fig6", "base_foot", 2.5, -0.6).name == "base_foot_m2.5_yaw-0.6"
+    assert CellCfg().check() == []
+    bad = CellCfg("../x", "fig5", "all", float("nan"), 4.0).check()
+    assert {k for k, _ in bad} == {"scenario", "run", "box_mass", "initial_yaw"}
+
+
+def test_the_cell_scenario_changes_the_box_mass_and_the_yaw_only(params):
+    tiny = params.scenarios["tiny"]
+    cell = cell_scenario(tiny, CellCfg(box_mass=2.5, initial_yaw=0.6))
+    assert cell.objects["box"].mass == 2.5 and cell.start.yaw == 0.6
+    assert cell.start.xy == tiny.start.xy and cell.plan == tiny.plan
+    assert cell.objects["table"] == tiny.objects["table"]
+    assert tiny.objects["box"].mass == params.scenario.box_mass  # not mutated
+
+
+def test_upstream_keyframes_are_reused_only_for_the_same_world(params, tiny_scene, tmp_path):
+    tiny = params.scenarios["tiny"]
+    heavy = tmp_path / "heavy"
+    write_scene(heavy, build_scene("tiny", cell_scenario(tiny, CellCfg(box_mass=9.0)), (64, 48)))
+    check_same_world(heavy, tiny_scene)
+    table = dataclasses.replace(tiny.objects["table"], pos=[0.6, 0.0, 0.0])
+    moved = dataclasses.replace(tiny, objects={**tiny.objects, "table": table})
+    write_scene(tmp_path / "moved", build_scene("tiny", moved, (64, 48)))
+    with pytest.raises(ConfigError, match="dvc repro retarget"):
+        check_same_world(tmp_path / "moved", tiny_scene)
+
+
+@pytest.fixture
+def upstream(tiny_scene, tmp_path) -> Path:
+    """data/tiny/ with the scene and stand-in contact and keyframe files (not valid
+    artifacts: a cell that reads them fails, which the recording test wants)."""
+    root = tmp_path / "data" / "tiny"
+    shutil.copytree(tiny_scene, root / "scene")
+    for folder in ("contacts/subtasks", "retarget/keyframes"):
+        (root / folder).mkdir(parents=True)
+        (root / folder / "subtask_0.npz").write_bytes(b"not an npz")
+    return root
+
+
+def test_the_key_changes_with_every_input(params, upstream):
+    tiny, solve, evaluate = params.scenarios["tiny"], params.solve, params.evaluate
+    cell = CellCfg()
+    key = cell_key(cell, tiny, solve, evaluate, upstream)
+    assert cell_key(cell, tiny, solve, evaluate, upstream) == key
+    heavier = CellCfg(box_mass=2.5)
+    assert cell_key(heavier, cell_scenario(tiny, heavier), solve, evaluate, upstream) != key
+    weights = dataclasses.replace(solve.weights, collision=10.0)
+    assert cell_key(cell, tiny, dataclasses.replace(solve, weights=weights), evaluate, upstream) != key
+    moved = dataclasses.replace(solve, cache_dir="/elsewhere")
+    assert cell_key(cell, tiny, moved, evaluate, upstream) == key  # where the cache is: no
+    (upstream / "retarget/keyframes/subtask_0.npz").write_bytes(b"another keyframe")
+    assert cell_key(cell, tiny, solve, evaluate, upstream) != key
+
+
+def test_a_failing_cell_is_recorded_and_a_rerun_skips_it(params, upstream):
+    data = upstream.parent
+    cell = CellCfg("tiny", "fig6", "all", 5.0, 0.0)
+    record = run_cell(params, cell, data)  # returns: the grid goes on
+    assert record["status"] == "error" and "ArtifactError" in record["reason"]
+    assert "subtask_" in record["reason"] and not record["skipped"]
+    folder = cell_dir(data, cell)
+    assert read_record(folder)["key"] == record["key"]
+    assert "Traceback" in (folder / "log.txt").read_text()
+    assert not list(folder.parent.glob(".*staging"))  # swapped in whole
+    again = run_cell(params, cell, data)
+    assert again["skipped"] and again["key"] == record["key"]
+    assert "error (ArtifactError" in summary(again)
+
+
+def test_a_cell_without_its_upstream_says_which_stage_to_run(params, tmp_path):
+    from locoman.errors import ArtifactError
+
+    with pytest.raises(ArtifactError, match="dvc repro retarget@tiny"):
+        run_cell(params, CellCfg(), tmp_path)
+    assert not (tmp_path / "tiny" / "grid").exists()
+
+
+def test_a_killed_cell_leaves_no_record(tmp_path):
+    folder = tmp_path / "cell"
+    folder.mkdir()
+    (folder / RECORD_FILE).write_text('{"status": ')  # cut short
+    assert read_record(folder) is None
+
+
+def test_the_multirun_sweeps_every_cell_of_the_figure(params):
+    cfg = dataclasses.replace(
+        params,
+        figures=FiguresCfg(
+            ["tiny"], "joblib", 3, 60.0, {"tiny": GridCfg([2.5, 5.0], [0.0, -0.6, 1.2])}
+        ),
+    )
+    todo = cells(cfg, "tiny", "fig6")
+    assert len(todo) == 2 * 3 * 8 and len({c.name for c in todo}) == len(todo)
+    command = multirun_command(cfg, "tiny", "fig6", ["hydra/launcher=submitit_slurm"])
+    assert command[1:4] == ["-m", "locoman.grid.app", "--multirun"]
+    assert "cell.box_mass=2.5,5.0" in command and "cell.initial_yaw=0.0,-0.6,1.2" in command
+    assert f"cell.run={','.join(r.name for r in KEYFRAME_RUNS)}" in command
+    assert "hydra.launcher.n_jobs=3" in command
+    assert command[-1] == "hydra/launcher=submitit_slurm"  # the caller's overrides win
+    fig5_cells = cells(cfg, "tiny", "fig5")
+    assert [c.run for c in fig5_cells] == [r.name for r in PIPELINE_RUNS]
+    assert {(c.box_mass, c.initial_yaw) for c in fig5_cells} == {
+        (cfg.scenario.box_mass, cfg.scenario.initial_yaw)
+    }
+    with pytest.raises(ConfigError, match="figures.grids"):
+        cells(cfg, "s2_trolley", "fig6")
+
+
+def test_figures_config_is_checked(params):
+    from locoman.config.load import validate
+
+    raw = json.loads(json.dumps(dataclasses.asdict(params), default=str))
+    raw["figures"]["scenarios"] = ["s1_basket"]
+    with pytest.raises(ConfigError, match=r"figures.scenarios.*not a solve scenario"):
+        validate(raw)
+    raw["figures"]["scenarios"] = ["tiny"]
+    raw["figures"]["launcher"] = "ray_aws"
+    with pytest.raises(ConfigError, match="figures.launcher"):
+        validate(raw)
+
+
+def _record(run: str, status: str = "converged", pen: float | None = 0.001, **kw) -> dict:
+    labels = {r.name: r.label for runs in FIGURE_RUNS.values() for r in runs}
+    return {
+        "scenario": "tiny",
+        "figure": "fig5" if run in {r.name for r in PIPELINE_RUNS} else "fig6",
+        "run": run,
+        "label": labels[run],
+        "box_mass": kw.get("mass", 5.0),
+        "initial_yaw": kw.get("yaw", 0.0),
+        "status": status,
+        "reason": "" if status == "converged" else "Maximum_Iterations_Exceeded",
+        "iterations": 80,
+        "avg_penetration_m": pen,
+        "max_penetration_m": None if pen is None else 2 * pen,
+        "max_penetration_pair": ["floor", "left_foot"],
+        "dynamics_residual_max": 1e-9,
+        "object_goal_error_m": 0.01,
+        "success": status == "converged",
+    }
+
+
+def test_fig5_claims_follow_the_evaluations_bounds():
+    cfg = EvaluateCfg()
+    runs = {
+        "ours": _record("ours", pen=0.001),
+        "naive": _record("naive", "not_converged", pen=0.05),
+        "ours_no_collision": _record("ours_no_collision", pen=0.16),
+        "geometry_unaware": _record("geometry_unaware", pen=0.06),
+    }
+    minimal, transfer = fig5_claims(runs, cfg)
+    assert minimal.holds is True and "naive: not_converged" in minimal.evidence
+    assert transfer.holds is False  # ours penetrates more without collision terms: say so
+    runs["naive"] = {**runs["naive"], "status": "error", "reason": "boom"}
+    assert fig5_claims(runs, cfg)[0].holds is None
+
+
+def test_fig6_claims_compare_all_against_none_cell_by_cell():
+    records = [
+        _record("none", "not_converged", 0.05, yaw=0.0),
+        _record("all", "converged", 0.001, yaw=0.0),
+        _record("none", "converged", 0.002, yaw=0.6),
+        _record("all", "converged", 0.004, yaw=0.6),
+    ]
+    convergence, penetration = fig6_claims(records)
+    assert convergence.holds and "AllKeyframe 2/2, NoKeyframe 1/2" in convergence.evidence
+    assert penetration.holds  # mean 2.5 mm against 26 mm
+    assert fig6_claims([])[0].holds is None
+
+
+def test_the_figures_and_the_summary_draw_from_records():
+    records = [
+        _record(run.name, "converged" if k % 3 else "not_converged", 0.02 * k, yaw=yaw)
+        for yaw in (0.0, 0.6)
+        for k, run in enumerate(KEYFRAME_RUNS)
+    ]
+    records[3] = {**records[3], "status": "error", "avg_penetration_m": None}
+    figure = fig6(records, 0.075, "Fig. 6")
+    bars = [p for ax in figure.axes[:2] for p in ax.patches]
+    assert max(b.get_height() for b in bars) == pytest.approx(75.0)  # cut at the bound [mm]
+    assert any(b.get_hatch() == "//" for b in bars)
+    runs5 = {r.name: _record(r.name) for r in PIPELINE_RUNS}
+    curves = {r.name: np.array([[0.0, 0.0], [0.1, 0.002]]) for r in PIPELINE_RUNS}
+    assert len(fig5(runs5, curves, "Fig. 5").axes) == 2
+    table = summary_csv(records).splitlines()
+    assert table[0].split(",") == list(SUMMARY_COLUMNS) and len(table) == 17
+    assert "| AllKeyframe | 5 | 0.6 | converged |" in markdown_table(records)
