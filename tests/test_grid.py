@@ -109,7 +109,8 @@ def test_the_key_changes_with_every_input(params, upstream):
     heavier = CellCfg(box_mass=2.5)
     assert cell_key(heavier, cell_scenario(tiny, heavier), solve, evaluate, upstream) != key
     weights = dataclasses.replace(solve.weights, collision=10.0)
-    assert cell_key(cell, tiny, dataclasses.replace(solve, weights=weights), evaluate, upstream) != key
+    heavy_weights = dataclasses.replace(solve, weights=weights)
+    assert cell_key(cell, tiny, heavy_weights, evaluate, upstream) != key
     moved = dataclasses.replace(solve, cache_dir="/elsewhere")
     assert cell_key(cell, tiny, moved, evaluate, upstream) == key  # where the cache is: no
     (upstream / "retarget/keyframes/subtask_0.npz").write_bytes(b"another keyframe")
@@ -166,7 +167,7 @@ def test_the_multirun_sweeps_every_cell_of_the_figure(params):
     assert {(c.box_mass, c.initial_yaw) for c in fig5_cells} == {
         (cfg.scenario.box_mass, cfg.scenario.initial_yaw)
     }
-    with pytest.raises(ConfigError, match="figures.grids"):
+    with pytest.raises(ConfigError, match=r"figures\.grids"):
         cells(cfg, "s2_trolley", "fig6")
 
 
@@ -179,7 +180,7 @@ def test_figures_config_is_checked(params):
         validate(raw)
     raw["figures"]["scenarios"] = ["tiny"]
     raw["figures"]["launcher"] = "ray_aws"
-    with pytest.raises(ConfigError, match="figures.launcher"):
+    with pytest.raises(ConfigError, match=r"figures\.launcher"):
         validate(raw)
 
 
@@ -230,6 +231,8 @@ def test_fig6_claims_compare_all_against_none_cell_by_cell():
     assert convergence.holds and "AllKeyframe 2/2, NoKeyframe 1/2" in convergence.evidence
     assert penetration.holds  # mean 2.5 mm against 26 mm
     assert fig6_claims([])[0].holds is None
+    close = [{**r, "avg_penetration_m": 0.0004 + 0.0001 * (r["run"] == "none")} for r in records]
+    assert fig6_claims(close)[1].holds is None  # 0.1 mm apart: decides nothing
 
 
 def test_the_figures_and_the_summary_draw_from_records():

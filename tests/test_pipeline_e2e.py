@@ -142,6 +142,40 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     assert "Running stage" not in second.stdout, second.stdout
 
 
+def _grid(workdir: Path, *overrides: str) -> subprocess.CompletedProcess[str]:
+    cell = ["cell.scenario=tiny", "cell.figure=fig6", "cell.box_mass=5.0", "cell.initial_yaw=0.0"]
+    app = [sys.executable, "-m", "locoman.grid.app", "--multirun"]
+    return _run([*app, *cell, *overrides], workdir)
+
+
+def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(workdir):
+    """Issue 22: cells reuse the upstream artifacts of the test above; a cell that fails
+    (here: 5 iterations allowed) is recorded and the grid goes on; a rerun skips it."""
+    capped = workdir / "params_capped.yaml"
+    text = (workdir / "params.yaml").read_text()
+    capped.write_text(text.replace("max_iterations: 1000", "max_iterations: 5", 1))
+    launcher = ["hydra/launcher=submitit_local", "hydra.launcher.timeout_min=20"]
+    args = ["cell.run=none,all", "params_file=params_capped.yaml", *launcher]
+    first = _grid(workdir, *args)
+    assert first.returncode == 0, first.stderr
+    grid = workdir / "data" / "tiny" / "grid" / "fig6"
+    for run in ("none", "all"):
+        record = json.loads((grid / f"{run}_m5_yaw+0" / "cell.json").read_text())
+        assert record["status"] == "not_converged", record
+        assert record["reason"] == "Maximum_Iterations_Exceeded" and record["iterations"] == 5
+        assert np.isfinite(record["avg_penetration_m"])
+    stamps = {p: p.stat().st_mtime_ns for p in grid.glob("*/cell.json")}
+    second = _grid(workdir, *args)
+    assert second.returncode == 0, second.stderr
+    assert {p: p.stat().st_mtime_ns for p in grid.glob("*/cell.json")} == stamps
+    # The default parameters (not capped): the cell is new, runs through joblib, converges.
+    third = _grid(workdir, "cell.run=all", "hydra/launcher=joblib", "hydra.launcher.n_jobs=1")
+    assert third.returncode == 0, third.stderr
+    record = json.loads((grid / "all_m5_yaw+0" / "cell.json").read_text())
+    assert record["status"] == "converged" and record["success"], record
+    assert "converged" in third.stdout
+
+
 def test_temporary_and_queued_experiments_run_in_dvcs_own_copies(workdir):
     """`dvc exp run --temp` and `--queue` run in copies without the checkout's .venv: the
     scene's MJCF must load there (it once named its meshes through the .venv)."""

@@ -13,10 +13,10 @@ from typing import Any
 from omegaconf import MISSING
 
 from locoman.config.contacts import ContactsCfg
+from locoman.config.figures import FiguresCfg
 from locoman.config.perception import PerceptionCfg
 from locoman.config.retarget import RetargetCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
-from locoman.config.figures import FiguresCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.stage import SCENARIO_NAME_RULE, valid_scenario_name
 

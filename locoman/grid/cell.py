@@ -50,8 +50,19 @@ RECORD_FILE = "cell.json"
 LOG_FILE = "log.txt"
 # The upstream outputs a cell reads, under data/<scenario>/.
 UPSTREAM = ("scene/objects.json", "scene/plan.json", "contacts/subtasks", "retarget/keyframes")
-# locoman's code a cell runs (relative to the package): a change reruns every cell.
-CODE = ("to", "sim", "scene", "grid", "artifacts", "config", "contact/io.py", "retarget/io.py")
+# locoman's code a cell runs (relative to the package): a change reruns every cell. The
+# figures' drawing is not in it: redrawing reuses the cells.
+CODE = (
+    "to",
+    "sim",
+    "scene",
+    "artifacts",
+    "config",
+    "contact/io.py",
+    "retarget/io.py",
+    "grid/cell.py",
+    "grid/runs.py",
+)
 # Statuses of a record: the TO converged, it stopped without converging (iteration or time
 # limit, infeasibility: IPOPT's status says which), or the cell could not run (the reason).
 STATUSES = ("converged", "not_converged", "error")
@@ -163,14 +174,14 @@ def check_same_world(cell_scene: Path, upstream_scene: Path) -> None:
     Raises:
         ConfigError: They differ: the upstream keyframes would belong to another scene.
     """
-    same_plan = (cell_scene / "plan.json").read_bytes() == (upstream_scene / "plan.json").read_bytes()
+    plans = [(folder / "plan.json").read_bytes() for folder in (cell_scene, upstream_scene)]
     ours = json.loads((cell_scene / "objects.json").read_text())["objects"]
     theirs = json.loads((upstream_scene / "objects.json").read_text())["objects"]
 
     def strip(objects: dict[str, Any]) -> dict[str, Any]:
         return {n: {k: v for k, v in s.items() if k != "mass_kg"} for n, s in objects.items()}
 
-    if not same_plan or strip(ours) != strip(theirs):
+    if plans[0] != plans[1] or strip(ours) != strip(theirs):
         raise ConfigError(
             f"the cell's scene differs from {upstream_scene} in more than the box mass and the "
             "initial yaw, so its contacts and keyframes do not apply: rerun the pipeline with "
@@ -262,11 +273,13 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
         except Exception as exc:  # a grid records every failure and goes on
             traceback.print_exc()
             numbers = {"status": "error", "reason": f"{type(exc).__name__}: {exc}"}
+    # JSON has no NaN: a non-finite number (a diverged solve) is recorded as null.
+    nan = [k for k, v in numbers.items() if isinstance(v, float) and not math.isfinite(v)]
+    finite = {**numbers, **dict.fromkeys(nan)}
     record = {
         **dataclasses.asdict(cell),
         "label": run.label,
-        # JSON has no NaN: a non-finite number (a diverged solve) is recorded as null.
-        **{k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in numbers.items()},
+        **finite,
         "wall_time_s": time.perf_counter() - tic,
         "key": key,
     }

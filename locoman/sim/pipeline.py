@@ -204,7 +204,9 @@ def evaluate_scenario(
         writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
     write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
     if media:
-        write_png(out_dir / "plots" / "filmstrip.png", filmstrip(model, traj, cfg.filmstrip_frames))
-        write_mp4(out_dir / VIDEO_FILE, motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE), VIDEO_FPS)
+        strip = filmstrip(model, traj, cfg.filmstrip_frames)
+        write_png(out_dir / "plots" / "filmstrip.png", strip)
+        video = motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE)
+        write_mp4(out_dir / VIDEO_FILE, video, VIDEO_FPS)
     write_metrics(out_dir, metrics)
     return metrics
