@@ -46,7 +46,14 @@ def main(cfg: DictConfig) -> dict[str, Any]:
     unknown = sorted(set(raw) - fields)
     if unknown:
         raise ConfigError(f"cell: unknown keys {unknown}; a cell has {sorted(fields)}")
-    cell = CellCfg(**{k: type(getattr(CellCfg, k))(v) for k, v in raw.items()})
+    # Hydra reads `cell.box_mass=5` as an int: the same cell must have the same key.
+    cell = CellCfg(
+        str(raw["scenario"]),
+        str(raw["figure"]),
+        str(raw["run"]),
+        float(raw["box_mass"]),
+        float(raw["initial_yaw"]),
+    )
     # One BLAS / OpenMP thread per cell, as every stage (locoman.stage.run_stage): the same
     # bits on any machine, and n_jobs cells share the cores instead of oversubscribing them.
     os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = "1"
