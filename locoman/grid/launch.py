@@ -54,7 +54,7 @@ def _values(values: list) -> str:
 def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str]) -> list[str]:
     """The Hydra multirun that runs every cell of :func:`cells`, with ``extra`` overrides
     last (they win)."""
-    todo = cells(cfg, scenario, figure)
+    swept = cells(cfg, scenario, figure)
     launcher = [f"hydra/launcher={cfg.figures.launcher}"]
     if cfg.figures.launcher == "joblib":
         launcher.append(f"hydra.launcher.n_jobs={cfg.figures.n_jobs}")
@@ -65,9 +65,9 @@ def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str])
         "--multirun",
         f"cell.scenario={scenario}",
         f"cell.figure={figure}",
-        f"cell.run={_values([c.run for c in todo])}",
-        f"cell.box_mass={_values([c.box_mass for c in todo])}",
-        f"cell.initial_yaw={_values([c.initial_yaw for c in todo])}",
+        f"cell.run={_values([c.run for c in swept])}",
+        f"cell.box_mass={_values([c.box_mass for c in swept])}",
+        f"cell.initial_yaw={_values([c.initial_yaw for c in swept])}",
         *launcher,
         *extra,
     ]
