@@ -39,7 +39,7 @@ from locoman.artifacts import write_json_atomic
 from locoman.config.schema import RootCfg, ScenarioCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.errors import ArtifactError, ConfigError
-from locoman.grid.runs import Run, find_run
+from locoman.grid.runs import find_run
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
 from locoman.sim.pipeline import evaluate_scenario
@@ -212,17 +212,20 @@ def output_to(path: Path) -> Iterator[None]:
 
 
 def _solve_and_evaluate(
-    cfg: RootCfg, cell: CellCfg, run: Run, upstream: Path, out: Path
+    name: str,
+    scenario: ScenarioCfg,
+    solve: SolveCfg,
+    evaluate: EvaluateCfg,
+    upstream: Path,
+    out: Path,
 ) -> dict[str, Any]:
     """The cell's scene, solve and evaluation into ``out``; the record's numbers."""
-    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
-    write_scene(out / "scene", build_scene(cell.scenario, scenario, (64, 48)))
+    write_scene(out / "scene", build_scene(name, scenario, (64, 48)))
     check_same_world(out / "scene", upstream / "scene")
-    solve = run.apply(cfg.solve)
     traj = solve_scenario(
         out / "scene", upstream / "contacts", upstream / "retarget", out / "solve", solve
     )
-    metrics = evaluate_scenario(out / "scene", out / "solve", out / "evaluate", cfg.evaluate, False)
+    metrics = evaluate_scenario(out / "scene", out / "solve", out / "evaluate", evaluate, False)
     return {
         "status": "converged" if traj.success else "not_converged",
         "reason": "" if traj.success else traj.status,
@@ -258,7 +261,8 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     run = find_run(cell.figure, cell.run)
     upstream = Path(data_dir) / cell.scenario
     scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
-    key = cell_key(cell, scenario, run.apply(cfg.solve), cfg.evaluate, upstream)
+    solve = run.apply(cfg.solve)
+    key = cell_key(cell, scenario, solve, cfg.evaluate, upstream)
     final = cell_dir(data_dir, cell)
     previous = read_record(final)
     if previous is not None and previous.get("key") == key:
@@ -269,7 +273,9 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     tic = time.perf_counter()
     with output_to(staging / LOG_FILE):
         try:
-            numbers = _solve_and_evaluate(cfg, cell, run, upstream, staging)
+            numbers = _solve_and_evaluate(
+                cell.scenario, scenario, solve, cfg.evaluate, upstream, staging
+            )
         except Exception as exc:  # a grid records every failure and goes on
             traceback.print_exc()
             numbers = {"status": "error", "reason": f"{type(exc).__name__}: {exc}"}
@@ -284,6 +290,8 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
         "key": key,
     }
     write_json_atomic(staging / RECORD_FILE, record)
+    # One rename of the whole folder, not stage.commit_staged's file-by-file moves: a kill
+    # in between leaves the old cell or none, never a new record beside old files.
     old = final.with_name(f".{final.name}.old")
     shutil.rmtree(old, ignore_errors=True)
     if final.exists():
