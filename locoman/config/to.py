@@ -66,11 +66,15 @@ class EvaluateCfg:
         penetration_tol_m: Largest average penetration allowed [m].
         max_penetration_tol_m: Largest penetration at any node [m] (the average hides a
             deep one; tiny's deepest is 2.4 mm, a foot on the floor).
-        goal_tol_m: Largest distance of the object from its target [m].
-        rest_height_tol_m: At the end the object's bottom lies this close to a support's
-            top face (the floor or a fixed object's) [m].
+        goal_tol_m: Largest distance of an object from its target [m], where its subtask
+            ends.
+        rest_height_tol_m: At the end each object's bottom lies this close to a support's
+            top face (the floor or another object's) [m].
         rest_speed_tol: ... and every rate of its (p, rpy) is at most this [m/s, rad/s].
         rest_tilt_tol_rad: ... and its roll and pitch at most this [rad].
+        nonholonomic_tol_mps: Largest lateral velocity of a chassis's rear wheels, (7a)
+            [m/s].
+        rider_slip_tol_m: Largest slide of an object on the object carrying it [m].
         filmstrip_frames: Frames in the PNG filmstrip.
     """
 
@@ -83,6 +87,8 @@ class EvaluateCfg:
     rest_height_tol_m: float = 0.01
     rest_speed_tol: float = 0.01
     rest_tilt_tol_rad: float = 0.1
+    nonholonomic_tol_mps: float = 1e-4
+    rider_slip_tol_m: float = 0.005
     filmstrip_frames: int = 8
 
     def check(self) -> list[tuple[str, str]]:
@@ -96,6 +102,8 @@ class EvaluateCfg:
             "rest_height_tol_m",
             "rest_speed_tol",
             "rest_tilt_tol_rad",
+            "nonholonomic_tol_mps",
+            "rider_slip_tol_m",
         )
         errors = [
             (name, f"must be finite and > 0, got {getattr(self, name)}")

@@ -157,6 +157,10 @@ def plan_states(
     return states
 
 
+# The world before any subtask: every object where the scene puts it.
+AS_BUILT = PlanState(-1, {}, None)
+
+
 def world_pose(objects: dict[str, dict[str, Any]], state: PlanState, name: str) -> np.ndarray:
     """World pose (4, 4) of any object during ``state``: a movable one where the plan left
     it, a fixed one where the scene has it."""

@@ -10,8 +10,10 @@
 - Friction: (3) with the wrenches in each contact's own frame, from Pinocchio's feet and the
   object's faces.
 - Slip: each stance foot's sole centre between consecutive nodes in contact.
-- Rest: where the object ends, it must stand upright on a support (the floor or a fixed
+- Rest: where each object ends, it must stand upright on a support (the floor or another
   object's top face) and be still; a placement target in mid-air fails here.
+- A chassis: the lateral velocity of its rear wheels (7a); an object resting on another: how
+  far it slides on it.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from locoman.scene import g1
-from locoman.scene.plan_state import PlanState, top_face, world_pose
+from locoman.scene.plan_state import AS_BUILT, top_face, world_pose
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.to.kinematics import pin_configuration, pin_velocity
 from locoman.to.layout import ObjectModel
@@ -44,14 +46,16 @@ def euler_rates_to_world(rpy: np.ndarray) -> np.ndarray:
 
 
 def scene_qpos(
-    model: mujoco.MjModel, q35: np.ndarray, object_name: str, object_q: np.ndarray
+    model: mujoco.MjModel, q35: np.ndarray, names: list[str], object_q: np.ndarray
 ) -> np.ndarray:
-    """MuJoCo qpos of the scene with the G1 at ``q35`` and the object at (p, rpy)."""
+    """MuJoCo qpos of the scene with the G1 at ``q35`` and each object of ``names`` at its
+    row (p, rpy) of ``object_q`` (M, 6)."""
     qpos = g1.pin_to_mujoco_qpos(g1.q35_to_pin(q35), model, model.key("home").qpos)
-    adr = model.joint(f"{object_name}_free").qposadr[0]
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, rpy_to_matrix(object_q[3:6]).ravel())
-    qpos[adr : adr + 7] = np.r_[object_q[:3], quat]
+    for name, pose in zip(names, object_q, strict=True):
+        adr = model.joint(f"{name}_free").qposadr[0]
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, rpy_to_matrix(pose[3:6]).ravel())
+        qpos[adr : adr + 7] = np.r_[pose[:3], quat]
     return qpos
 
 
@@ -62,14 +66,14 @@ def geom_label(model: mujoco.MjModel, geom: int) -> str:
 
 
 def penetrations(
-    model: mujoco.MjModel, q: np.ndarray, object_name: str, object_q: np.ndarray
+    model: mujoco.MjModel, q: np.ndarray, names: list[str], object_q: np.ndarray
 ) -> tuple[np.ndarray, list[tuple[str, str, float]]]:
     """Total penetration [m] per node (sum of -dist over contacts with dist < 0), and the
-    deepest (geom, geom, depth) per node."""
+    deepest (geom, geom, depth) per node; ``object_q`` (N, M, 6)."""
     data = mujoco.MjData(model)
     totals, worst = [], []
     for qk, ok in zip(q, object_q, strict=True):
-        data.qpos[:] = scene_qpos(model, qk, object_name, ok)
+        data.qpos[:] = scene_qpos(model, qk, names, ok)
         mujoco.mj_forward(model, data)
         depth, deepest = 0.0, ("", "", 0.0)
         for c in data.contact[: data.ncon]:
@@ -84,16 +88,22 @@ def penetrations(
 
 @dataclasses.dataclass(frozen=True)
 class Residuals:
-    """Largest residuals over the trajectory, in the units of each equation."""
+    """Largest residuals over the trajectory, in the units of each equation.
 
-    robot_momentum: float  # (1a) [kg m/s, kg m^2/s]
-    robot_configuration: float  # (1b) [m, rad]
-    object_momentum: float
-    object_configuration: float
+    Attributes:
+        robot_momentum: (1a) [kg m/s, kg m^2/s].
+        robot_configuration: (1b) [m, rad].
+        objects: object -> ((1a), (1b)) over the nodes where it is simulated.
+    """
+
+    robot_momentum: float
+    robot_configuration: float
+    objects: dict[str, tuple[float, float]]
 
     @property
     def max(self) -> float:
-        return max(dataclasses.astuple(self))
+        values = [self.robot_momentum, self.robot_configuration]
+        return max(values + [v for pair in self.objects.values() for v in pair])
 
 
 def _sole_frames(q35: np.ndarray, sole_centre: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -108,15 +118,58 @@ def _sole_frames(q35: np.ndarray, sole_centre: np.ndarray) -> list[tuple[np.ndar
 
 
 def hand_points_world(traj: dict[str, np.ndarray]) -> np.ndarray:
-    """(N, 2, 3) hand contact points on the object, world [m]."""
-    R = np.array([rpy_to_matrix(o[3:6]) for o in traj["object_q"]])
-    return np.einsum("nij,hj->nhi", R, traj["hand_points"]) + traj["object_q"][:, None, :3]
+    """(N, 2, 3) each hand's contact point on the object it touches, world [m]; NaN where
+    it touches none."""
+    out = np.full((len(traj["q"]), 2, 3), np.nan)
+    for k, touched in enumerate(traj["hand_object"]):
+        for i, j in enumerate(touched):
+            if j >= 0:
+                pose = traj["object_q"][k, j]
+                out[k, i] = rpy_to_matrix(pose[3:6]) @ traj["hand_points"][j, i] + pose[:3]
+    return out
+
+
+def _rigid_body_momentum(obj: ObjectModel, qo: np.ndarray, vo: np.ndarray) -> tuple:
+    """Centroidal momentum (6,) and CoM (3,) [m] of an object at (p, rpy), (p_dot, rpy_dot)."""
+    R = rpy_to_matrix(qo[3:6])
+    omega = euler_rates_to_world(qo[3:6]) @ vo[3:6]
+    c = qo[:3] + R @ obj.com
+    v_com = vo[:3] + np.cross(omega, R @ obj.com)
+    return np.r_[obj.mass * v_com, R @ obj.inertia @ R.T @ omega], c
+
+
+def _rate(mass: float, com: np.ndarray, contacts: list[tuple]) -> np.ndarray:
+    """(6,) gravity plus each (point, force, moment) contact, about ``com``."""
+    force, moment = mass * GRAVITY, np.zeros(3)
+    for r, f, tau in contacts:
+        force = force + f
+        moment = moment + np.cross(r - com, f) + tau
+    return np.r_[force, moment]
+
+
+def object_contacts(traj: dict[str, np.ndarray], hands: np.ndarray, k: int, j: int) -> list:
+    """(point, force, moment) on object j at node k: its support, minus each hand touching
+    it and minus the support of each object resting on it (Newton's third law (6))."""
+    out = []
+    if traj["support_kind"][k, j] != "none":
+        w = traj["support_wrench"][k, j]
+        out.append((traj["object_q"][k, j, :3], w[:3], w[3:]))
+    for i in range(2):
+        if traj["hand_object"][k, i] == j:
+            w = traj["hand_wrench"][k, i]
+            out.append((hands[k, i], -w[:3], -w[3:]))
+    for rider in np.flatnonzero(traj["support_base"][k] == j):
+        if traj["object_active"][k, rider]:
+            w = traj["support_wrench"][k, rider]
+            out.append((traj["object_q"][k, rider, :3], -w[:3], -w[3:]))
+    return out
 
 
 def dynamics_residuals(
-    traj: dict[str, np.ndarray], obj: ObjectModel, sole_centre: np.ndarray
+    traj: dict[str, np.ndarray], objects: list[ObjectModel], sole_centre: np.ndarray
 ) -> Residuals:
-    """(1a), (1b) of the robot and of the object, recomputed."""
+    """(1a), (1b) of the robot and of every object, recomputed; ``objects`` in the
+    trajectory's order."""
     model = g1.g1_pinocchio_model()
     data = model.createData()
     mass = pin.computeTotalMass(model)
@@ -128,47 +181,33 @@ def dynamics_residuals(
         momenta.append(np.r_[hg.linear, hg.angular])
         coms.append(data.com[0].copy())
     hands = hand_points_world(traj)
-    obj_momenta, obj_coms = [], []
-    for qo, vo in zip(traj["object_q"], traj["object_v"], strict=True):
-        R = rpy_to_matrix(qo[3:6])
-        omega = euler_rates_to_world(qo[3:6]) @ vo[3:6]
-        c = qo[:3] + R @ obj.com
-        v_com = vo[:3] + np.cross(omega, R @ obj.com)
-        obj_momenta.append(np.r_[obj.mass * v_com, R @ obj.inertia @ R.T @ omega])
-        obj_coms.append(c)
-    robot_h = robot_q = obj_h = obj_q = 0.0
+    robot_h = robot_q = 0.0
     for k in range(n - 1):
-        force, moment = mass * GRAVITY, np.zeros(3)
+        contacts = []
         soles = _sole_frames(q[k], sole_centre)
         for i in range(2):
             if traj["feet_contact"][k, i]:
-                f, tau = traj["foot_wrench"][k, i, :3], traj["foot_wrench"][k, i, 3:]
-                force = force + f
-                moment = moment + np.cross(soles[i][0] - coms[k], f) + tau
-            if traj["hands_contact"][k, i]:
-                f, tau = traj["hand_wrench"][k, i, :3], traj["hand_wrench"][k, i, 3:]
-                force = force + f
-                moment = moment + np.cross(hands[k, i] - coms[k], f) + tau
-        rate = np.r_[force, moment]
+                w = traj["foot_wrench"][k, i]
+                contacts.append((soles[i][0], w[:3], w[3:]))
+            if traj["hand_object"][k, i] >= 0:
+                w = traj["hand_wrench"][k, i]
+                contacts.append((hands[k, i], w[:3], w[3:]))
+        rate = _rate(mass, coms[k], contacts)
         robot_h = max(robot_h, np.abs(momenta[k + 1] - momenta[k] - dt[k] * rate).max())
         robot_q = max(robot_q, np.abs(q[k + 1] - q[k] - v[k + 1] * dt[k]).max())
-        if not traj["object_active"][k + 1]:
-            continue
-        force, moment = obj.mass * GRAVITY, np.zeros(3)
-        if traj["object_supported"][k]:
-            f, tau = traj["support_wrench"][k, :3], traj["support_wrench"][k, 3:]
-            force = force + f
-            moment = moment + np.cross(traj["object_q"][k, :3] - obj_coms[k], f) + tau
-        for i in range(2):
-            if traj["hands_contact"][k, i]:
-                f, tau = -traj["hand_wrench"][k, i, :3], -traj["hand_wrench"][k, i, 3:]
-                force = force + f
-                moment = moment + np.cross(hands[k, i] - obj_coms[k], f) + tau
-        rate = np.r_[force, moment]
-        obj_h = max(obj_h, np.abs(obj_momenta[k + 1] - obj_momenta[k] - dt[k] * rate).max())
-        step = traj["object_q"][k + 1] - traj["object_q"][k] - traj["object_v"][k + 1] * dt[k]
-        obj_q = max(obj_q, np.abs(step).max())
-    return Residuals(float(robot_h), float(robot_q), float(obj_h), float(obj_q))
+    per_object = {}
+    for j, obj in enumerate(objects):
+        qo, vo = traj["object_q"][:, j], traj["object_v"][:, j]
+        states = [_rigid_body_momentum(obj, qo[k], vo[k]) for k in range(n)]
+        worst_h = worst_q = 0.0
+        for k in range(n - 1):
+            if not traj["object_active"][k + 1, j]:
+                continue
+            rate = _rate(obj.mass, states[k][1], object_contacts(traj, hands, k, j))
+            worst_h = max(worst_h, np.abs(states[k + 1][0] - states[k][0] - dt[k] * rate).max())
+            worst_q = max(worst_q, np.abs(qo[k + 1] - qo[k] - vo[k + 1] * dt[k]).max())
+        per_object[obj.name] = (float(worst_h), float(worst_q))
+    return Residuals(float(robot_h), float(robot_q), per_object)
 
 
 def cone_violation(
@@ -187,28 +226,87 @@ def cone_violation(
     return float(max(0.0, -min(margins)))
 
 
+def chassis_violation(
+    force: np.ndarray, moment: np.ndarray, R: np.ndarray, mu: float, half: np.ndarray, x_rear: float
+) -> float:
+    """Largest violation [N, N m] of a chassis contact's wrench rows (Sec. IV-A.3): (7b)
+    f_x = 0, the yaw moment of the rear axle's lateral force, the lateral force within the
+    wheels' friction and the CoP within the wheelbase; 0 when all hold."""
+    f, tau = R.T @ force, R.T @ moment
+    x, y = half
+    equalities = [abs(f[0]), abs(tau[2] - x_rear * f[1])]
+    margins = [mu * f[2] - abs(f[1]), f[2] * x - abs(tau[1]), f[2] * y - abs(tau[0])]
+    return float(max(max(equalities), 0.0, -min(margins)))
+
+
 def friction_violation(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
-    """Largest violation of (3) over the nodes whose wrenches act (all but the last)."""
-    mu_floor, mu_hand, mu_obj = traj["mu"]
+    """Largest violation of (3) (and a chassis's wrench rows) over the nodes whose wrenches
+    act (all but the last)."""
     worst = 0.0
     for k in range(len(traj["q"]) - 1):
         soles = _sole_frames(traj["q"][k], sole_centre)
-        R_obj = rpy_to_matrix(traj["object_q"][k, 3:6])
+        R_obj = [rpy_to_matrix(o[3:6]) for o in traj["object_q"][k]]
         for i in range(2):
             if traj["feet_contact"][k, i]:
                 w = traj["foot_wrench"][k, i]
-                half = traj["sole_half_extents"]
-                worst = max(worst, cone_violation(w[:3], w[3:], soles[i][1], mu_floor, half))
-            if traj["hands_contact"][k, i] and not traj["prehensile"]:
+                half, mu = traj["sole_half_extents"], float(traj["floor_friction"])
+                worst = max(worst, cone_violation(w[:3], w[3:], soles[i][1], mu, half))
+            j = traj["hand_object"][k, i]
+            if j >= 0 and not traj["prehensile"][j]:
                 w = traj["hand_wrench"][k, i]
-                R = R_obj @ traj["hand_frames"][i]
-                half = traj["palm_half_extents"]
-                worst = max(worst, cone_violation(w[:3], w[3:], R, mu_hand, half))
-        if traj["object_active"][k] and traj["object_supported"][k]:
-            w = traj["support_wrench"][k]
-            half = traj["object_half_extents"]
-            worst = max(worst, cone_violation(w[:3], w[3:], R_obj, mu_obj, half))
+                R = R_obj[j] @ traj["hand_frames"][j, i]
+                half, mu = traj["palm_half_extents"], traj["object_friction"][j]
+                worst = max(worst, cone_violation(w[:3], w[3:], R, mu, half))
+        for j, kind in enumerate(traj["support_kind"][k]):
+            if kind == "none" or not traj["object_active"][k, j]:
+                continue
+            w, mu = traj["support_wrench"][k, j], traj["object_friction"][j]
+            half = traj["object_half_extents"][j]
+            if kind == "chassis":
+                x_rear = traj["rear_axle_x"][j]
+                violation = chassis_violation(w[:3], w[3:], R_obj[j], mu, half, x_rear)
+            else:
+                violation = cone_violation(w[:3], w[3:], R_obj[j], mu, half)
+            worst = max(worst, violation)
     return worst
+
+
+def nonholonomic_violation(traj: dict[str, np.ndarray]) -> float:
+    """Largest lateral velocity [m/s] of a chassis's rear wheels in its frame, (7a), over
+    the nodes where it rolls; 0 without a chassis."""
+    worst = 0.0
+    for k in range(len(traj["q"])):
+        for j in np.flatnonzero(traj["support_kind"][k] == "chassis"):
+            if not traj["object_active"][k, j]:
+                continue
+            qo, vo = traj["object_q"][k, j], traj["object_v"][k, j]
+            R = rpy_to_matrix(qo[3:6])
+            omega = euler_rates_to_world(qo[3:6]) @ vo[3:6]
+            rear = vo[:3] + np.cross(omega, traj["rear_axle_x"][j] * R[:, 0])
+            worst = max(worst, abs(float(R[:, 1] @ rear)))
+    return worst
+
+
+def rider_slip(traj: dict[str, np.ndarray]) -> dict[str, float]:
+    """For each object that rests on another: the largest distance [m] its origin moves in
+    the carrier's frame while it rests there (the box on a pushed trolley)."""
+    names = [str(n) for n in traj["object_names"]]
+    out: dict[str, float] = {}
+    for j, name in enumerate(names):
+        riding = (traj["support_kind"][:, j] == "on_object") & traj["object_active"][:, j]
+        on = np.flatnonzero(riding)
+        if not len(on):
+            continue
+        base = int(traj["support_base"][on[0], j])
+
+        def local(k: int, j=j, base=base) -> np.ndarray:
+            pb = traj["object_q"][k, base]
+            return rpy_to_matrix(pb[3:6]).T @ (traj["object_q"][k, j, :3] - pb[:3])
+
+        first = local(on[0])
+        slip = max(float(np.linalg.norm(local(k) - first)) for k in on)
+        out[f"{name}_on_{names[base]}"] = slip
+    return out
 
 
 def stance_slip(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
@@ -223,44 +321,45 @@ def stance_slip(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
     return worst
 
 
-# The scene before any subtask: every object where the scene puts it.
-_AS_BUILT = PlanState(-1, {}, None)
-
-
 def support_under(
-    objects: dict[str, dict], object_q: np.ndarray, height_tol_m: float
+    objects: dict[str, dict], name: str, poses: dict[str, np.ndarray], height_tol_m: float
 ) -> str | None:
-    """What a box-like object at ``object_q`` (p, rpy; its frame at its bottom face's
-    centre) rests on: ``floor`` when its bottom is at the floor's height, else the fixed
-    object whose top face holds its bottom centre at that face's height, within
-    ``height_tol_m`` [m]; None when it rests on nothing (it hangs in mid-air, or sinks into
-    a support)."""
-    bottom = np.asarray(object_q[:3], dtype=float)
+    """What a box-like object ``name`` rests on, its frame (its bottom face's centre, a
+    trolley's chassis frame on the ground) at ``poses[name]`` (4, 4): ``floor`` when that is
+    at the floor's height, else the object whose top face holds it at that face's height,
+    within ``height_tol_m`` [m] (movable objects at ``poses``, fixed ones where the scene
+    has them); None when it rests on nothing (it hangs in mid-air, or sinks into a
+    support)."""
+    bottom = poses[name][:3, 3]
     if abs(bottom[2]) <= height_tol_m:
         return "floor"
-    for name, spec in sorted(objects.items()):
-        face = top_face(spec) if not spec["movable"] else None
+    for other, spec in sorted(objects.items()):
+        face = top_face(spec) if other != name else None
         if face is None:
             continue
         centre, half = face
-        pose = world_pose(objects, _AS_BUILT, name)
+        pose = poses[other] if other in poses else world_pose(objects, AS_BUILT, other)
         local = np.linalg.solve(pose, np.r_[bottom, 1.0])[:3] - centre
         if abs(local[2]) <= height_tol_m and np.all(np.abs(local[:2]) <= half):
-            return name
+            return other
     return None
 
 
 def object_at_rest(
     objects: dict[str, dict],
+    name: str,
+    poses: dict[str, np.ndarray],
     object_q: np.ndarray,
     object_v: np.ndarray,
     height_tol_m: float,
     speed_tol: float,
     tilt_tol_rad: float,
 ) -> tuple[bool, str | None]:
-    """Whether the object ends upright (roll and pitch within ``tilt_tol_rad`` [rad]), still
-    (every rate within ``speed_tol`` [m/s, rad/s]) and on a support; and that support."""
-    support = support_under(objects, object_q, height_tol_m)
+    """Whether object ``name`` ends upright (roll and pitch of ``object_q`` within
+    ``tilt_tol_rad`` [rad]), still (every rate of ``object_v`` within ``speed_tol`` [m/s,
+    rad/s]) and on a support (:func:`support_under`, ``poses`` every movable object's
+    final pose); and that support."""
+    support = support_under(objects, name, poses, height_tol_m)
     upright = bool(np.all(np.abs(object_q[3:5]) <= tilt_tol_rad))
     still = bool(np.all(np.abs(object_v) <= speed_tol))
     return support is not None and upright and still, support

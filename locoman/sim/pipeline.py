@@ -32,11 +32,14 @@ from locoman.config.to import EvaluateCfg
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_scene_model
+from locoman.scene.rotations import rpy_to_matrix
 from locoman.sim.evaluate import (
     dynamics_residuals,
     friction_violation,
+    nonholonomic_violation,
     object_at_rest,
     penetrations,
+    rider_slip,
     scene_qpos,
     stance_slip,
 )
@@ -62,13 +65,13 @@ def _render(
     model: mujoco.MjModel,
     data: mujoco.MjData,
     q: np.ndarray,
-    object_name: str,
+    names: list[str],
     object_q: np.ndarray,
     label: str,
 ) -> np.ndarray:
-    """The scene with the G1 at ``q`` (35,) and the object at ``object_q``, seen from the
-    robot's front left, ``label`` written in its top left corner."""
-    data.qpos[:] = scene_qpos(model, q, object_name, object_q)
+    """The scene with the G1 at ``q`` (35,) and the objects ``names`` at ``object_q``
+    (M, 6), seen from the robot's front left, ``label`` written in its top left corner."""
+    data.qpos[:] = scene_qpos(model, q, names, object_q)
     mujoco.mj_forward(model, data)
     cam = mujoco.MjvCamera()
     cam.lookat[:] = q[:3] + np.array([0.0, 0.0, -0.2])
@@ -88,12 +91,12 @@ def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -
     data = mujoco.MjData(model)
     nodes = np.linspace(0, len(traj["q"]) - 1, frames).round().astype(int)
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
-    name = str(traj["object_name"])
+    names = object_names(traj)
     tiles = []
     with mujoco.Renderer(model, height=TILE, width=TILE) as renderer:
         for k in nodes:
             label = f"t={time[k]:.2f}s {traj['phase'][k]}"
-            image = _render(renderer, model, data, traj["q"][k], name, traj["object_q"][k], label)
+            image = _render(renderer, model, data, traj["q"][k], names, traj["object_q"][k], label)
             tiles.append(fit_tile(image, TILE)[0])
     while len(tiles) % 2:
         tiles.append(np.full_like(tiles[0], 255))
@@ -107,24 +110,56 @@ def motion_frames(
     """Frames (height, width, 3) of the motion in real time at ``fps`` [1/s]: robot and object
     interpolated linearly between the nodes, the camera following the robot."""
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
-    name = str(traj["object_name"])
+    names = object_names(traj)
     width, height = size
     data = mujoco.MjData(model)
     with mujoco.Renderer(model, height=height, width=width) as renderer:
         for t in np.arange(0.0, time[-1] + 0.5 / fps, 1.0 / fps):
             q = np.array([np.interp(t, time, c) for c in traj["q"].T])
-            o = np.array([np.interp(t, time, c) for c in traj["object_q"].T])
+            o = np.apply_along_axis(lambda c, t=t: np.interp(t, time, c), 0, traj["object_q"])
             k = min(int(np.searchsorted(time, t, side="right")), len(time) - 1)
-            yield _render(renderer, model, data, q, name, o, f"t={t:.2f}s {traj['phase'][k]}")
+            yield _render(renderer, model, data, q, names, o, f"t={t:.2f}s {traj['phase'][k]}")
+
+
+def pose_matrix(pose: np.ndarray) -> np.ndarray:
+    """(4, 4) of a (p, rpy) pose."""
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = rpy_to_matrix(pose[3:6]), pose[:3]
+    return out
+
+
+def goal_metrics(traj: dict[str, np.ndarray], names: list[str]) -> dict[str, float]:
+    """Per object with a goal: ``<name>_goal_error_m``, the distance [m] of its xy from the
+    goal's, and ``<name>_goal_yaw_error_rad``, at the node its subtask ends."""
+    out = {}
+    for j, name in enumerate(names):
+        node, goal = int(traj["goal_node"][j]), traj["object_goal"][j]
+        if node < 0:
+            continue
+        pose = traj["object_q"][node, j]
+        out[f"{name}_goal_error_m"] = float(np.linalg.norm(pose[:2] - goal[:2]))
+        yaw = float(abs(np.remainder(pose[5] - goal[2] + np.pi, 2 * np.pi) - np.pi))
+        out[f"{name}_goal_yaw_error_rad"] = yaw
+    return out
+
+
+def object_names(traj: dict[str, np.ndarray]) -> list[str]:
+    return [str(name) for name in traj["object_names"]]
+
+
+# Trajectory fields in which NaN means "none" (no goal, no rear axle).
+NAN_MEANS_NONE = ("object_goal", "rear_axle_x")
 
 
 def all_finite(traj: dict[str, np.ndarray]) -> bool:
     """Every floating-point array of the trajectory is finite (a NaN in q replays as no
-    penetration at all)."""
+    penetration at all), but for :data:`NAN_MEANS_NONE`."""
     return all(
         bool(np.all(np.isfinite(v)))
-        for v in traj.values()
-        if isinstance(v, np.ndarray) and np.issubdtype(v.dtype, np.floating)
+        for name, v in traj.items()
+        if name not in NAN_MEANS_NONE
+        and isinstance(v, np.ndarray)
+        and np.issubdtype(v.dtype, np.floating)
     )
 
 
@@ -136,18 +171,14 @@ def evaluate_scenario(
     evaluation's time); returns the metrics."""
     traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
     model = load_scene_model(scene_dir)
-    name = str(traj["object_name"])
-    objects = load_objects(scene_dir)
-    spec = objects[name]
-    obj = ObjectModel.from_spec(name, spec)
+    names = object_names(traj)
+    specs = load_objects(scene_dir)
+    objects = [ObjectModel.from_spec(name, specs[name]) for name in names]
     sole_centre = contact_frames().sole["left_sole"]
-    per_node, deepest = penetrations(model, traj["q"], name, traj["object_q"])
-    residuals = dynamics_residuals(traj, obj, sole_centre)
+    per_node, deepest = penetrations(model, traj["q"], names, traj["object_q"])
+    residuals = dynamics_residuals(traj, objects, sole_centre)
     friction = friction_violation(traj, sole_centre)
     slip = stance_slip(traj, sole_centre)
-    goal = traj["object_goal"]
-    final = traj["object_q"][-1]
-    goal_error = float(np.linalg.norm(final[:2] - goal[:2])) if np.all(np.isfinite(goal)) else 0.0
     avg = float(per_node.sum() / len(per_node))
     worst = int(np.argmax(per_node))
     metrics = {
@@ -160,28 +191,36 @@ def evaluate_scenario(
         "dynamics_residuals": {
             "robot_momentum": residuals.robot_momentum,
             "robot_configuration": residuals.robot_configuration,
-            "object_momentum": residuals.object_momentum,
-            "object_configuration": residuals.object_configuration,
+            **{f"{name}_momentum": h for name, (h, _) in residuals.objects.items()},
+            **{f"{name}_configuration": c for name, (_, c) in residuals.objects.items()},
         },
         "friction_cone_violation_max": friction,
         "stance_foot_slip_max_m": slip,
-        "object_goal_error_m": goal_error,
-        "object_goal_yaw_error_rad": float(
-            abs(np.remainder(final[5] - goal[2] + np.pi, 2 * np.pi) - np.pi)
-        )
-        if np.all(np.isfinite(goal))
-        else 0.0,
         "duration_s": float(traj["dt"][:-1].sum()),
     }
-    at_rest, support = object_at_rest(
-        objects,
-        final,
-        traj["object_v"][-1],
-        cfg.rest_height_tol_m,
-        cfg.rest_speed_tol,
-        cfg.rest_tilt_tol_rad,
+    goal_errors = goal_metrics(traj, names)
+    metrics |= goal_errors
+    metrics["object_goal_error_m"] = max(
+        (v for k, v in goal_errors.items() if k.endswith("_goal_error_m")), default=0.0
     )
-    metrics["object_support_at_end"] = support
+    metrics["object_goal_yaw_error_rad"] = max(
+        (v for k, v in goal_errors.items() if k.endswith("_goal_yaw_error_rad")), default=0.0
+    )
+    final = {name: pose_matrix(traj["object_q"][-1, j]) for j, name in enumerate(names)}
+    rest = {
+        name: object_at_rest(
+            specs,
+            name,
+            final,
+            traj["object_q"][-1, j],
+            traj["object_v"][-1, j],
+            cfg.rest_height_tol_m,
+            cfg.rest_speed_tol,
+            cfg.rest_tilt_tol_rad,
+        )
+        for j, name in enumerate(names)
+    }
+    metrics["supports_at_end"] = {name: support for name, (_, support) in rest.items()}
     # success means every one of these; NaN fails every comparison.
     checks = {
         "solver_converged": bool(traj["success"]),
@@ -191,9 +230,16 @@ def evaluate_scenario(
         "stance_foot_slip": slip <= cfg.slip_tol_m,
         "avg_penetration": avg <= cfg.penetration_tol_m,
         "max_penetration": float(per_node.max()) <= cfg.max_penetration_tol_m,
-        "object_goal": goal_error <= cfg.goal_tol_m,
-        "object_at_rest_on_support": at_rest,
+        "object_goal": metrics["object_goal_error_m"] <= cfg.goal_tol_m,
+        "objects_at_rest_on_support": all(at_rest for at_rest, _ in rest.values()),
     }
+    if np.any(traj["support_kind"] == "chassis"):
+        lateral = nonholonomic_violation(traj)
+        metrics["nonholonomic_violation_max_mps"] = lateral
+        checks["nonholonomic"] = lateral <= cfg.nonholonomic_tol_mps
+    for pair, value in rider_slip(traj).items():
+        metrics[f"{pair}_slip_max_m"] = value
+        checks[f"{pair}_slip"] = value <= cfg.rider_slip_tol_m
     metrics["failed_checks"] = [name for name, passed in checks.items() if not passed]
     metrics["success"] = not metrics["failed_checks"]
     buffer = io.StringIO()

@@ -33,9 +33,9 @@ def has_display() -> bool:
 def trajectory_qpos(model: mujoco.MjModel, solve_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     """(N,) node times [s] and (N, nq) MuJoCo qpos of a TO trajectory."""
     traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
-    name = str(traj["object_name"])
+    names = [str(name) for name in traj["object_names"]]
     qpos = np.array(
-        [scene_qpos(model, q, name, o) for q, o in zip(traj["q"], traj["object_q"], strict=True)]
+        [scene_qpos(model, q, names, o) for q, o in zip(traj["q"], traj["object_q"], strict=True)]
     )
     return np.r_[0.0, np.cumsum(traj["dt"][:-1])], qpos
 

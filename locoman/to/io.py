@@ -2,14 +2,16 @@
 
 Layout under ``data/<scenario>/solve/``::
 
-    trajectory.npz     the TO's trajectory (robot, object, contact wrenches, slacks, dt)
+    trajectory.npz     the TO's trajectory (robot, objects, contact wrenches, slacks, dt)
     trajectory.mcap    link and object poses over time (foxglove.FrameTransforms, /tf)
     metrics.json       solver status and statistics
 
 Configurations are paper A's: q = (base position [m], roll-pitch-yaw [rad], 29 joints
-[rad]), v = dq/dt; the object's q = (position of its bottom centre [m], roll-pitch-yaw).
-Wrenches are in world axes: each foot's at its sole centre, each hand's (the object's push
-on the robot; the object receives its opposite) at the hand's contact point on the object.
+[rad]), v = dq/dt; an object's q = (position of its frame origin [m]: its bottom centre, a
+trolley's chassis frame on the ground; roll-pitch-yaw). Wrenches are in world axes: each
+foot's at its sole centre, each hand's (the touched object's push on the robot; the object
+receives its opposite) at the hand's contact point on the object, each support's at the
+supported object's origin (an object resting on another hands it the opposite).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ MCAP_FILE = "trajectory.mcap"
 
 TRAJECTORY = ArtifactSchema(
     "to.trajectory",
-    1,
+    2,
     "solve",
     (
         Field("status", "str", (), "-", "IPOPT's return status"),
@@ -29,27 +31,32 @@ TRAJECTORY = ArtifactSchema(
         Field("q", "float64", ("N", 35), "mixed", "robot configuration per node"),
         Field("v", "float64", ("N", 35), "mixed", "dq/dt per node"),
         Field("foot_wrench", "float64", ("N", 2, 6), "N, N m", "left, right: force, moment"),
-        Field("hand_wrench", "float64", ("N", 2, 6), "N, N m", "object's wrench on each hand"),
-        Field("hand_points", "float64", (2, 3), "m", "hand contacts in the object frame"),
-        Field("object_q", "float64", ("N", 6), "mixed", "object position, roll-pitch-yaw"),
-        Field("object_v", "float64", ("N", 6), "mixed", "d(object_q)/dt"),
-        Field("support_wrench", "float64", ("N", 6), "N, N m", "support on the object"),
+        Field("hand_wrench", "float64", ("N", 2, 6), "N, N m", "touched object's wrench on hand"),
+        Field("object_names", "str", ("M",), "-", "the scene's movable objects, TO order"),
+        Field("object_q", "float64", ("N", "M", 6), "mixed", "object position, roll-pitch-yaw"),
+        Field("object_v", "float64", ("N", "M", 6), "mixed", "d(object_q)/dt"),
+        Field("support_wrench", "float64", ("N", "M", 6), "N, N m", "support on each object"),
         Field("foot_slack", "float64", ("N", 2), "m", "slack of (2a)"),
         Field("hand_slack", "float64", ("N", 2, 3), "m", "slack of (4)"),
+        Field("support_slack", "float64", ("N", "M"), "m", "slack of each support's (2a)"),
         Field("dt", "float64", ("N",), "s", "time step to the next node (last unused)"),
         Field("feet_contact", "bool", ("N", 2), "-", "foot on the ground"),
-        Field("hands_contact", "bool", ("N", 2), "-", "hand on the object"),
-        Field("object_active", "bool", ("N",), "-", "object simulated (touched)"),
-        Field("object_supported", "bool", ("N",), "-", "object on a support"),
+        Field("hand_object", "int64", ("N", 2), "-", "object each hand touches, -1: none"),
+        Field("object_active", "bool", ("N", "M"), "-", "object simulated"),
+        Field("support_kind", "str", ("N", "M"), "-", "surface, on_object, chassis or none"),
+        Field("support_base", "int64", ("N", "M"), "-", "supporting object, -1: the world"),
         Field("phase", "str", ("N",), "-", "schedule phase of each node"),
         Field("subtask", "int64", ("N",), "-", "plan subtask of each node"),
-        Field("object_goal", "float64", (3,), "mixed", "target x, y [m], yaw [rad]"),
-        Field("object_name", "str", (), "-", "the manipulated object"),
-        Field("mu", "float64", (3,), "-", "friction of floor, hands on object, object"),
+        Field("object_goal", "float64", ("M", 3), "mixed", "target x, y [m], yaw [rad]; NaN"),
+        Field("goal_node", "int64", ("M",), "-", "node the goal holds at, -1: none"),
+        Field("floor_friction", "float64", (), "-", "mu of the feet on the floor"),
+        Field("object_friction", "float64", ("M",), "-", "mu of each object's surfaces"),
+        Field("object_half_extents", "float64", ("M", 2), "m", "CoP patch of each object"),
+        Field("rear_axle_x", "float64", ("M",), "m", "a chassis's rear axle x; NaN: none"),
+        Field("prehensile", "bool", ("M",), "-", "hands on the object exempt from (3)"),
         Field("sole_half_extents", "float64", (2,), "m", "CoP patch of a sole"),
         Field("palm_half_extents", "float64", (2,), "m", "CoP patch of a palm"),
-        Field("object_half_extents", "float64", (2,), "m", "CoP patch of the object"),
-        Field("hand_frames", "float64", (2, 3, 3), "-", "hand contact frames, object frame"),
-        Field("prehensile", "bool", (), "-", "hands exempt from (3)"),
+        Field("hand_points", "float64", ("M", 2, 3), "m", "hand contacts, object frame"),
+        Field("hand_frames", "float64", ("M", 2, 3, 3), "-", "hand contact frames, object frame"),
     ),
 )

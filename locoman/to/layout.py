@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -49,58 +50,107 @@ BODY_POINTS = (
     ("right_knee_link", (0.01, 0.0, -0.14), 0.065),
 )
 
-# One node's decision variables: robot q, v; per foot and hand a force [N] and moment [N m]
-# at the contact point (world axes; a hand's is the box's push on the robot); the object's
-# q = (p, rpy) and v = dq/dt; the wrench of its support on it; the slacks of (2a) and (4);
-# the time step to the next node [s]; the lifted kinematics.
-VARIABLES, WIDTH = _slices(
-    {
-        "q": NQ,
-        "v": NQ,
-        "kin": N_KIN,
-        "foot_wrench": 12,  # (f_l, tau_l, f_r, tau_r)
-        "hand_wrench": 12,
-        "object_q": 6,
-        "object_v": 6,
-        "support_wrench": 6,
-        "foot_slack": 2,
-        "hand_slack": 6,
-        "support_slack": 1,
-        "dt": 1,
-    }
-)
 
-# One node's parameters: phase flags and references, so that one stage function serves
-# every node of a mode and costs switch without rebuilding.
-PARAMETERS, N_PARAMS = _slices(
-    {
-        "swing": 2,  # left, right foot in swing: foot clearance of L_wk
-        "yaw_ref": 1,  # [rad] base yaw the pose costs regularise towards
-        "kf_base_on": 1,  # (9) at this node
-        "kf_base": 4,  # base z [m], rpy [rad] of the keyframe
-        "kf_foot_on": 1,  # (10) at this node
-        "kf_foot": 2,  # desired feet midpoint xy [m]
-        "foot_surface_z": 2,  # [m] height of the surface under each foot
-        "support_z": 1,  # [m] height of the surface under the object
-        "goal_on": 1,
-        "goal": 3,  # object x, y [m], yaw [rad] at the end
-        "hand_points": 6,  # contact points on the object, its frame [m]
-        "hand_frames": 18,  # contact frames (3x3, columns, z = outward normal), object frame
-    }
-)
+def object_key(j: int, quantity: str) -> str:
+    """The layout name of object ``j``'s ``quantity`` (``q``, ``v``, ``support_wrench``,
+    ``support_slack``; parameters ``support_z``, ``goal_on``, ``goal``)."""
+    return f"object{j}_{quantity}"
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeLayout:
+    """One node's decision variables and parameters for a scene with ``n_objects`` rigid
+    objects (paper A: every object obeys the same dynamics (1) as the robot's centroid).
+
+    Variables: robot q, v; the lifted kinematics; per foot and hand a force [N] and moment
+    [N m] at the contact point (world axes; a hand's is the touched object's push on the
+    robot); per object its q = (p, rpy), v = dq/dt and the wrench of its support on it (at
+    its bottom centre); the slacks of (2a) and (4), per object the slack of its support's
+    (2a); the time step to the next node [s].
+
+    Parameters (so that one stage function serves every node of a mode and costs switch
+    without rebuilding): swing flags, the yaw reference [rad], the keyframe costs' switches
+    and references, the height of the surface under each foot [m], the hands' contact points
+    and frames on the object they touch (its frame), per object the height of its support's
+    surface [m] (in the supporting object's frame when it rests on one) and its goal.
+
+    Attributes:
+        n_objects: Number of objects.
+        variables, parameters: name -> slice of the node's block.
+        width, n_params: Block sizes.
+    """
+
+    n_objects: int
+    variables: dict[str, slice]
+    width: int
+    parameters: dict[str, slice]
+    n_params: int
+
+    @classmethod
+    @functools.cache
+    def of(cls, n_objects: int) -> NodeLayout:
+        objects = range(n_objects)
+        variables, width = _slices(
+            {
+                "q": NQ,
+                "v": NQ,
+                "kin": N_KIN,
+                "foot_wrench": 12,  # (f_l, tau_l, f_r, tau_r)
+                "hand_wrench": 12,
+                **{
+                    object_key(j, name): 6 for j in objects for name in ("q", "v", "support_wrench")
+                },
+                "foot_slack": 2,
+                "hand_slack": 6,
+                **{object_key(j, "support_slack"): 1 for j in objects},
+                "dt": 1,
+            }
+        )
+        parameters, n_params = _slices(
+            {
+                "swing": 2,  # left, right foot in swing: foot clearance of L_wk
+                "yaw_ref": 1,  # [rad] base yaw the pose costs regularise towards
+                "kf_base_on": 1,  # (9) at this node
+                "kf_base": 4,  # base z [m], rpy [rad] of the keyframe
+                "kf_foot_on": 1,  # (10) at this node
+                "kf_foot": 2,  # desired feet midpoint xy [m]
+                "foot_surface_z": 2,  # [m] height of the surface under each foot
+                "hand_points": 6,  # contact points on the touched object, its frame [m]
+                "hand_frames": 18,  # contact frames (3x3, columns, z = outward normal)
+                **{
+                    object_key(j, name): size
+                    for j in objects
+                    for name, size in (("support_z", 1), ("goal_on", 1), ("goal", 3))
+                },
+            }
+        )
+        return cls(n_objects, variables, width, parameters, n_params)
+
+    def object_variables(self, j: int, quantity: str) -> slice:
+        return self.variables[object_key(j, quantity)]
+
+    def object_parameters(self, j: int, quantity: str) -> slice:
+        return self.parameters[object_key(j, quantity)]
 
 
 @dataclasses.dataclass(frozen=True)
 class ObjectModel:
-    """The manipulated rigid body (paper A: objects obey the same dynamics (1)).
+    """A rigid object of the scene (paper A: objects obey the same dynamics (1)).
 
     Attributes:
         name: Object name in the scene.
         mass: [kg].
         inertia: (3, 3) about the CoM, body axes [kg m^2].
-        com: (3,) CoM in the body frame [m]; the body frame sits at the bottom face's centre.
-        half_extents: (2,) half sizes of the bottom patch [m].
+        com: (3,) CoM in the body frame [m]; the body frame sits at the bottom face's centre
+            (a trolley's: the chassis contact frame on the ground below its platform centre);
+            a solid object's collision box is its bottom patch up to twice the CoM's height.
+        half_extents: (2,) half sizes of the bottom patch [m] (a trolley's: of its wheelbase).
         friction: Coefficient of its surfaces [-].
+        solid: Its bounding box is solid, so that the robot's body and the obstacles are
+            kept out of it (a trolley's open frame is not).
+        prehensile: The hands grasp it (a handle): their contacts drop (3) (Sec. IV-A.2).
+        rear_axle_x: A wheeled chassis (Sec. IV-A.3): x of its fixed-direction (rear)
+            wheels' axle in its frame [m]; None for an object that rests on a face.
     """
 
     name: str
@@ -109,15 +159,37 @@ class ObjectModel:
     com: np.ndarray
     half_extents: np.ndarray
     friction: float
+    solid: bool = True
+    prehensile: bool = False
+    rear_axle_x: float | None = None
+
+    @property
+    def wheeled(self) -> bool:
+        return self.rear_axle_x is not None
 
     @classmethod
     def from_spec(cls, name: str, spec: dict) -> ObjectModel:
-        """The object of the scene's object table (``objects.json``) entry ``spec``."""
-        return cls.box(name, np.array(spec["size_m"]), spec["mass_kg"], spec["friction"])
+        """The object of the scene's object table (``objects.json``) entry ``spec``: a
+        trolley (kind ``trolley``) is a wheeled chassis with the mass of a box of its size,
+        the wheels' layout read from its ``wheel_*`` primitives; anything else a solid box."""
+        size = np.array(spec["size_m"], dtype=float)
+        model = cls.box(name, size, spec["mass_kg"], spec["friction"])
+        if spec["kind"] != "trolley":
+            return model
+        parts = spec["primitives"]
+        wheels = np.array([p["pos"][:2] for p in parts if p["name"].startswith("wheel")])
+        return dataclasses.replace(
+            model,
+            half_extents=np.abs(wheels).max(axis=0),
+            solid=False,
+            prehensile=True,
+            rear_axle_x=float(wheels[wheels[:, 0] < 0.0, 0].mean()),
+        )
 
     @classmethod
     def box(cls, name: str, size: np.ndarray, mass: float, friction: float) -> ObjectModel:
         """A solid box of full ``size`` (3,) [m] with its frame at the bottom centre."""
         a, b, c = np.asarray(size, dtype=float)
         inertia = mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
-        return cls(name, mass, inertia, np.array([0.0, 0.0, c / 2]), np.array([a, b]) / 2, friction)
+        com = np.array([0.0, 0.0, c / 2])
+        return cls(name, mass, inertia, com, np.array([a, b]) / 2, friction)

@@ -16,7 +16,7 @@ The vector holds, by name:
 - ``contact.<field>``: floor friction [-], the stiffness k_z of (2a) [1/s], the palm's
   half sizes [m];
 - ``collision.<field>``: margin [m], smoothing [m], length L [m], softness [-] of (11), (12);
-- ``object.<field>``: the object's mass [kg], inertia about its CoM (3x3, body axes,
+- ``object<j>.<field>``: each object's mass [kg], inertia about its CoM (3x3, body axes,
   column-major) [kg m^2], CoM in its frame [m], half sizes [m], friction [-];
 - ``obstacle<i>.<field>``: each fixed box's centre [m], yaw [rad] and half sizes [m].
 
@@ -66,7 +66,7 @@ class GlobalParameters:
         weights: CostWeights,
         contact,
         collision: CollisionCfg,
-        obj: ObjectModel,
+        objects: Sequence[ObjectModel],
         obstacles: Sequence[Obstacle],
     ) -> GlobalParameters:
         """The parameters of one scenario and settings (``contact``: a
@@ -78,7 +78,8 @@ class GlobalParameters:
         }
         values |= {f"contact.{n}": _flat(getattr(contact, n)) for n in _CONTACT_FIELDS}
         values |= {f"collision.{n}": _flat(getattr(collision, n)) for n in _COLLISION_FIELDS}
-        values |= {f"object.{n}": _flat(getattr(obj, n)) for n in _OBJECT_FIELDS}
+        for j, obj in enumerate(objects):
+            values |= {f"object{j}.{n}": _flat(getattr(obj, n)) for n in _OBJECT_FIELDS}
         for i, obstacle in enumerate(obstacles):
             values |= {f"obstacle{i}.{n}": _flat(getattr(obstacle, n)) for n in _OBSTACLE_FIELDS}
         bad = [name for name, v in values.items() if not np.all(np.isfinite(v))]
@@ -95,17 +96,21 @@ class GlobalParameters:
         """The values, concatenated in layout order."""
         return np.concatenate(list(self.values.values()))
 
-    def object(self, template: ObjectModel) -> ObjectModel:
-        """``template`` with this vector's mass, inertia, CoM, half sizes and friction: the
-        bounds and the initial guess of the TO use the same object as its functions."""
+    def objects(self, templates: Sequence[ObjectModel]) -> tuple[ObjectModel, ...]:
+        """``templates`` with this vector's masses, inertias, CoMs, half sizes and
+        frictions: the bounds and the initial guess of the TO use the same objects as its
+        functions."""
         v = self.values
-        return dataclasses.replace(
-            template,
-            mass=float(v["object.mass"][0]),
-            inertia=v["object.inertia"].reshape(3, 3, order="F"),
-            com=v["object.com"].copy(),
-            half_extents=v["object.half_extents"].copy(),
-            friction=float(v["object.friction"][0]),
+        return tuple(
+            dataclasses.replace(
+                template,
+                mass=float(v[f"object{j}.mass"][0]),
+                inertia=v[f"object{j}.inertia"].reshape(3, 3, order="F"),
+                com=v[f"object{j}.com"].copy(),
+                half_extents=v[f"object{j}.half_extents"].copy(),
+                friction=float(v[f"object{j}.friction"][0]),
+            )
+            for j, template in enumerate(templates)
         )
 
 
@@ -160,15 +165,19 @@ class SymbolicGlobals:
             numeric, **{n: self[f"collision.{n}"] for n in _COLLISION_FIELDS}
         )
 
-    def object(self, numeric: ObjectModel) -> ObjectModel:
-        """The object with symbolic mass, inertia (3, 3), CoM, half sizes and friction."""
-        return dataclasses.replace(
-            numeric,
-            mass=self["object.mass"],
-            inertia=ca.reshape(self["object.inertia"], 3, 3),
-            com=self["object.com"],
-            half_extents=self["object.half_extents"],
-            friction=self["object.friction"],
+    def objects(self, numeric: Sequence[ObjectModel]) -> tuple[ObjectModel, ...]:
+        """Each object with symbolic mass, inertia (3, 3), CoM, half sizes and friction;
+        its kind (solid, prehensile, wheeled) stays: it is structure."""
+        return tuple(
+            dataclasses.replace(
+                obj,
+                mass=self[f"object{j}.mass"],
+                inertia=ca.reshape(self[f"object{j}.inertia"], 3, 3),
+                com=self[f"object{j}.com"],
+                half_extents=self[f"object{j}.half_extents"],
+                friction=self[f"object{j}.friction"],
+            )
+            for j, obj in enumerate(numeric)
         )
 
     def obstacles(self, numeric: Sequence[Obstacle]) -> tuple[Obstacle, ...]:

@@ -6,21 +6,25 @@ stage functions then only combine them. A stage k couples nodes k and k + 1
 (:mod:`locoman.to.nlp`). Its constraints are
 
 - the centroidal dynamics (1a), (1b) of the robot, with the wrenches of node k's contacts;
-- the same dynamics for the object once a hand has touched it (before, it rests where the
-  scene put it and its variables are fixed);
+- the same dynamics for every object once it is active (touched by a hand, or resting on or
+  carrying an active object; before, it rests where the scene put it and its variables are
+  fixed);
 - the contact constraints of node k + 1: patch contact (2a)-(2c) of each foot on the ground,
-  the interactive contact (4), (5a), (5b) of each hand on the object, patch contact of the
-  object on its support; (2d) only where the contact starts at k + 1 (elsewhere (2c) at
-  both nodes with (1b) already fixes those rates, and imposing both makes the constraint
+  the interactive contact (4), (5a), (5b) of each hand on the object it touches, and each
+  object's support contact (:mod:`locoman.to.supports`: a surface, another object, a
+  wheeled chassis); (2d) only where the contact starts at k + 1 (elsewhere (2c) at both
+  nodes with (1b) already fixes those rates, and imposing both makes the constraint
   Jacobian singular); after the first node of a hand contact, (5b) keeps only the rate about
   the contact normal, for the same reason;
-- the friction cone and CoP (3) of node k's non-prehensile contacts.
+- the friction cone and CoP (3) of node k's non-prehensile contacts, and the wrench rows of
+  the supports ((7b) of a chassis).
 
-Newton's third law (6) holds by construction: the object receives minus each hand's wrench,
-at the same point. The cost is node k's (8): L_st or L_wk by the mode, L_reg, L_slack, the
-keyframe costs (9), (10) where the parameters switch them on, and the object goal, with the
-collision penalties (12) as residuals (:mod:`locoman.to.nlp` takes their Hessian as
-Gauss-Newton); the last stage adds node N - 1's.
+Newton's third law (6) holds by construction: an object receives minus each hand's wrench,
+and an object carrying another minus that one's support wrench, at the same point. The cost
+is node k's (8): L_st or L_wk by the mode, L_reg, L_slack, the keyframe costs (9), (10)
+where the parameters switch them on, and the objects' goals, with the collision penalties
+(12) as residuals (:mod:`locoman.to.nlp` takes their Hessian as Gauss-Newton); the last
+stage adds node N - 1's.
 """
 
 from __future__ import annotations
@@ -42,12 +46,7 @@ from locoman.to.collision import (
     sphere_box_penetration,
     vertical_edge_points,
 )
-from locoman.to.contacts import (
-    friction_cone_cop,
-    interactive_contact,
-    no_rolling,
-    patch_contact,
-)
+from locoman.to.contacts import friction_cone_cop, interactive_contact, no_rolling, patch_contact
 from locoman.to.costs import (
     CostWeights,
     keyframe_base_cost,
@@ -59,19 +58,24 @@ from locoman.to.costs import (
 )
 from locoman.to.dynamics import rigid_body_momentum, wrench_sum
 from locoman.to.kinematics import SymbolicKinematics, euler_rates_to_world, rpy_matrix
-from locoman.to.layout import (
-    BODY_POINTS,
-    FEET,
-    HANDS,
-    KINEMATICS,
-    N_PARAMS,
-    PARAMETERS,
-    VARIABLES,
-    WIDTH,
-    ObjectModel,
-)
+from locoman.to.layout import BODY_POINTS, FEET, HANDS, KINEMATICS, NodeLayout, ObjectModel
 from locoman.to.nlp import StageGroup
 from locoman.to.parameters import GlobalParameters, SymbolicGlobals
+from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
+
+
+@dataclasses.dataclass(frozen=True)
+class ObjectMode:
+    """One object's state of contact at a node.
+
+    Attributes:
+        active: Simulated: its variables are free and obey (1). An inactive object rests
+            where the scene put it.
+        support: What it rests on (:mod:`locoman.to.supports`); None while carried.
+    """
+
+    active: bool
+    support: Support | None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,23 +84,33 @@ class NodeMode:
 
     Attributes:
         feet: (left, right) foot on the ground.
-        hands: (left, right) hand on the object.
-        object_active: The object is simulated (a hand has touched it).
-        object_supported: The object rests on a support.
+        hands: (left, right): the index of the object the hand touches, or None.
+        objects: Each object's :class:`ObjectMode`.
     """
 
     feet: tuple[bool, bool]
-    hands: tuple[bool, bool]
-    object_active: bool
-    object_supported: bool
+    hands: tuple[int | None, int | None]
+    objects: tuple[ObjectMode, ...]
 
     @property
     def stance(self) -> bool:
         return all(self.feet)
 
-    @property
-    def carried(self) -> bool:
-        return any(self.hands) and not self.object_supported
+    def supported(self, j: int) -> bool:
+        """Object j is active and rests on a support."""
+        return self.objects[j].active and self.objects[j].support is not None
+
+    def carried(self, j: int) -> bool:
+        """Object j is held off any support."""
+        return self.objects[j].active and self.objects[j].support is None
+
+    def riders(self, j: int) -> list[int]:
+        """The active objects that rest on object j."""
+        return [
+            o
+            for o, m in enumerate(self.objects)
+            if m.active and isinstance(m.support, OnObject) and m.support.base == j
+        ]
 
 
 @dataclasses.dataclass
@@ -122,16 +136,6 @@ class ContactCfg:
         if len(self.palm_half_extents_m) != 2 or min(self.palm_half_extents_m) <= 0.0:
             errors.append(("palm_half_extents_m", "needs two half sizes > 0 m"))
         return errors
-
-
-def _var(z: ca.SX, name: str) -> ca.SX:
-    return z[VARIABLES[name]]
-
-
-def _kin(z: ca.SX, name: str) -> ca.SX:
-    """A lifted kinematic quantity; rotations come back as (3, 3)."""
-    value = _var(z, "kin")[KINEMATICS[name]]
-    return ca.reshape(value, 3, 3) if name.endswith("_R") else value
 
 
 def kinematics_function(kin: SymbolicKinematics, frames: ContactFrames) -> ca.Function:
@@ -167,10 +171,6 @@ def kinematics_function(kin: SymbolicKinematics, frames: ContactFrames) -> ca.Fu
     return ca.Function("kinematics", [q, v], [ca.vertcat(*[parts[name] for name in KINEMATICS])])
 
 
-def _par(p: ca.SX, name: str) -> ca.SX:
-    return p[PARAMETERS[name]]
-
-
 class StageBuilder:
     """Builds and caches one stage function per (mode at k, mode at k + 1, last) triple.
 
@@ -180,7 +180,7 @@ class StageBuilder:
 
     Args:
         kin: Symbolic kinematics of the G1.
-        obj: The manipulated object.
+        objects: The scene's rigid objects, in the layout's order.
         frames: The G1's sole and palm frames.
         weights: Cost weights.
         contact: Contact parameters.
@@ -191,21 +191,24 @@ class StageBuilder:
     def __init__(
         self,
         kin: SymbolicKinematics,
-        obj: ObjectModel,
+        objects: tuple[ObjectModel, ...],
         frames: ContactFrames,
         weights: CostWeights,
         contact: ContactCfg,
         collision: CollisionCfg,
         obstacles: tuple[Obstacle, ...],
     ) -> None:
-        self.parameters = GlobalParameters.of(weights, contact, collision, obj, obstacles)
+        self.layout = NodeLayout.of(len(objects))
+        self.parameters = GlobalParameters.of(weights, contact, collision, objects, obstacles)
         symbols = SymbolicGlobals(self.parameters.layout)
         self.theta = symbols.theta
-        self.kin, self.obj = kin, symbols.object(obj)
+        self.kin, self.objects = kin, symbols.objects(objects)
         self.w, self.contact = symbols.weights(weights), symbols.contact(contact)
         self.collision, self.obstacles = symbols.collision(collision), symbols.obstacles(obstacles)
-        # Points per vertical edge of each obstacle, spaced by the object's half height.
-        self.edge_counts = [edge_point_count(o.half_extents[2], obj.com[2]) for o in obstacles]
+        # Points per vertical edge of each obstacle, spaced by each object's half height.
+        self.edge_counts = [
+            [edge_point_count(o.half_extents[2], obj.com[2]) for o in obstacles] for obj in objects
+        ]
         self.sole_half = np.asarray(frames.sole_half_extents)
         self.palm_radius = float(frames.palm_radius)
         self.palm_half_length = float(frames.palm_half_length)
@@ -215,6 +218,31 @@ class StageBuilder:
             "base_omega", [q, v], [euler_rates_to_world(q[3:6]) @ v[3:6]]
         )
         self._cache: dict[tuple, tuple[ca.Function, np.ndarray, np.ndarray]] = {}
+
+    # --- access to a node's block ---------------------------------------------------------
+
+    def _var(self, z: ca.SX, name: str) -> ca.SX:
+        return z[self.layout.variables[name]]
+
+    def _ovar(self, z: ca.SX, j: int, quantity: str) -> ca.SX:
+        return z[self.layout.object_variables(j, quantity)]
+
+    def _par(self, p: ca.SX, name: str) -> ca.SX:
+        return p[self.layout.parameters[name]]
+
+    def _opar(self, p: ca.SX, j: int, quantity: str) -> ca.SX:
+        return p[self.layout.object_parameters(j, quantity)]
+
+    def _kin(self, z: ca.SX, name: str) -> ca.SX:
+        """A lifted kinematic quantity; rotations come back as (3, 3)."""
+        value = self._var(z, "kin")[KINEMATICS[name]]
+        return ca.reshape(value, 3, 3) if name.endswith("_R") else value
+
+    def _symbols(self) -> tuple[ca.SX, ca.SX]:
+        layout = self.layout
+        return ca.SX.sym("z", layout.width), ca.SX.sym("p", layout.n_params)
+
+    # --- groups ---------------------------------------------------------------------------
 
     def group(
         self,
@@ -235,8 +263,8 @@ class StageBuilder:
     def kinematics_group(self, nodes: np.ndarray, curvature: bool = True) -> StageGroup:
         """The node constraint tying the lifted kinematics to q, v at ``nodes``; without
         ``curvature`` its second derivatives stay out of the Hessian (Gauss-Newton)."""
-        z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
-        residual = _var(z, "kin") - self.kinematics(_var(z, "q"), _var(z, "v"))
+        z, p = self._symbols()
+        residual = self._var(z, "kin") - self.kinematics(self._var(z, "q"), self._var(z, "v"))
         fn = ca.Function("kinematics_node", [z, p, self.theta], [residual, ca.SX(0), ca.SX(0, 1)])
         rows = residual.numel()
         return StageGroup(
@@ -249,7 +277,7 @@ class StageBuilder:
         cfg = self.collision
         if not cfg.self_pairs or cfg.self_collision == "off":
             return None
-        z, p = ca.SX.sym("z", WIDTH), ca.SX.sym("p", N_PARAMS)
+        z, p = self._symbols()
         terms = CollisionTerms()
         terms.add(
             cfg.self_collision,
@@ -260,20 +288,23 @@ class StageBuilder:
             [self.kin.q, self.theta],
             [terms.inequalities(), terms.residuals(cfg.softness, self.w.collision)],
         )
-        rows, residuals = of_q(_var(z, "q"), self.theta)
+        rows, residuals = of_q(self._var(z, "q"), self.theta)
         fn = ca.Function("self_collision_node", [z, p, self.theta], [rows, ca.SX(0), residuals])
         n = rows.numel()
         return StageGroup(fn, np.asarray(nodes, dtype=int), np.zeros(n), np.full(n, np.inf))
 
+    # --- the robot's and the objects' frames ------------------------------------------------
+
     def _foot(self, z: ca.SX, i: int) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """Sole centre [m], its velocity [m/s], rotation and angular velocity [rad/s]."""
         f = FEET[i]
-        return _kin(z, f"{f}_r"), _kin(z, f"{f}_r_dot"), _kin(z, f"{f}_R"), _kin(z, f"{f}_w")
+        kin = self._kin
+        return kin(z, f"{f}_r"), kin(z, f"{f}_r_dot"), kin(z, f"{f}_R"), kin(z, f"{f}_w")
 
     def _palm(self, z: ca.SX, i: int) -> tuple[ca.SX, ca.SX, ca.SX]:
         """Palm centre [m], contact frame and angular velocity [rad/s]."""
         h = HANDS[i]
-        return _kin(z, f"{h}_r"), _kin(z, f"{h}_R"), _kin(z, f"{h}_w")
+        return self._kin(z, f"{h}_r"), self._kin(z, f"{h}_R"), self._kin(z, f"{h}_w")
 
     def _palm_spheres(self, z: ca.SX, i: int) -> list[tuple[ca.SX, float]]:
         """(centre [m], radius [m]) of spheres covering the hand's collision capsule: its
@@ -282,16 +313,22 @@ class StageBuilder:
         ends = [r + sign * self.palm_half_length * R[:, 0] for sign in (-1.0, 1.0)]
         return [(point, self.palm_radius) for point in (r, *ends)]
 
-    def _object_frame(self, z: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
-        qo, vo = _var(z, "object_q"), _var(z, "object_v")
-        return rpy_matrix(qo[3:6]), qo[0:3], euler_rates_to_world(qo[3:6]) @ vo[3:6]
+    def _object_frame(self, z: ca.SX, j: int) -> BodyFrame:
+        qo, vo = self._ovar(z, j, "q"), self._ovar(z, j, "v")
+        R = rpy_matrix(qo[3:6])
+        return BodyFrame(qo[0:3], R, vo[0:3], euler_rates_to_world(qo[3:6]) @ vo[3:6])
 
-    def _hand_contact(self, z: ca.SX, p: ca.SX, i: int) -> tuple[ca.SX, ca.SX]:
-        """Contact point on the object's surface [m] and the face's frame, world."""
-        R_o, p_o, _ = self._object_frame(z)
-        point = _par(p, "hand_points")[3 * i : 3 * i + 3]
-        face = ca.reshape(_par(p, "hand_frames")[9 * i : 9 * i + 9], 3, 3)
-        return p_o + R_o @ point, R_o @ face
+    def _hand_contact(self, z: ca.SX, p: ca.SX, i: int, j: int) -> tuple[ca.SX, ca.SX]:
+        """Hand i's contact point on object j's surface [m] and the face's frame, world."""
+        frame = self._object_frame(z, j)
+        point = self._par(p, "hand_points")[3 * i : 3 * i + 3]
+        face = ca.reshape(self._par(p, "hand_frames")[9 * i : 9 * i + 9], 3, 3)
+        return frame.p + frame.R @ point, frame.R @ face
+
+    def _hand_wrench(self, z: ca.SX, i: int) -> ca.SX:
+        return self._var(z, "hand_wrench")[6 * i : 6 * i + 6]
+
+    # --- dynamics (1) -----------------------------------------------------------------------
 
     def _robot_contacts(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> list[tuple]:
         """(point, force, moment) of each of the robot's contacts at a node."""
@@ -299,42 +336,51 @@ class StageBuilder:
         for i in range(2):
             if mode.feet[i]:
                 r = self._foot(z, i)[0]
-                w = _var(z, "foot_wrench")[6 * i : 6 * i + 6]
+                w = self._var(z, "foot_wrench")[6 * i : 6 * i + 6]
                 out.append((r, w[0:3], w[3:6]))
-            if mode.hands[i]:
-                r, _ = self._hand_contact(z, p, i)
-                w = _var(z, "hand_wrench")[6 * i : 6 * i + 6]
+            if mode.hands[i] is not None:
+                r, _ = self._hand_contact(z, p, i, mode.hands[i])
+                w = self._hand_wrench(z, i)
                 out.append((r, w[0:3], w[3:6]))
         return out
 
-    def _object_contacts(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> list[tuple]:
-        """(point, force, moment) on the object at a node: its support and minus each
-        hand's wrench (6)."""
+    def _object_contacts(self, z: ca.SX, p: ca.SX, mode: NodeMode, j: int) -> list[tuple]:
+        """(point, force, moment) on object j at a node: its support's wrench, and (6)
+        minus each touching hand's and each rider's support wrench."""
         out = []
-        if mode.object_supported:
-            w = _var(z, "support_wrench")
-            out.append((_var(z, "object_q")[0:3], w[0:3], w[3:6]))
+        # An object not yet simulated rests on its support's fixed wrench: the stage into
+        # its first simulated node needs it.
+        if mode.objects[j].support is not None:
+            w = self._ovar(z, j, "support_wrench")
+            out.append((self._ovar(z, j, "q")[0:3], w[0:3], w[3:6]))
         for i in range(2):
-            if mode.hands[i]:
-                r, _ = self._hand_contact(z, p, i)
-                w = _var(z, "hand_wrench")[6 * i : 6 * i + 6]
+            if mode.hands[i] == j:
+                r, _ = self._hand_contact(z, p, i, j)
+                w = self._hand_wrench(z, i)
                 out.append((r, -w[0:3], -w[3:6]))
+        for rider in mode.riders(j):
+            w = self._ovar(z, rider, "support_wrench")
+            out.append((self._ovar(z, rider, "q")[0:3], -w[0:3], -w[3:6]))
         return out
 
     def _dynamics(self, z, z1, p, mode: NodeMode, mode_next: NodeMode) -> list[ca.SX]:
-        q, q1, v1, dt = _var(z, "q"), _var(z1, "q"), _var(z1, "v"), _var(z, "dt")
-        h, com, h1 = _kin(z, "h"), _kin(z, "com"), _kin(z1, "h")
+        var = self._var
+        q, q1, v1, dt = var(z, "q"), var(z1, "q"), var(z1, "v"), var(z, "dt")
+        h, com, h1 = self._kin(z, "h"), self._kin(z, "com"), self._kin(z1, "h")
         wrench = wrench_sum(com, self._robot_contacts(z, p, mode), self.kin.mass)
         rows = [h1 - h - wrench * dt, q1 - q - v1 * dt]  # (1a), (1b)
-        if mode_next.object_active:
-            obj = self.obj
-            qo, vo = _var(z, "object_q"), _var(z, "object_v")
-            qo1, vo1 = _var(z1, "object_q"), _var(z1, "object_v")
+        for j, obj in enumerate(self.objects):
+            if not mode_next.objects[j].active:
+                continue
+            qo, vo = self._ovar(z, j, "q"), self._ovar(z, j, "v")
+            qo1, vo1 = self._ovar(z1, j, "q"), self._ovar(z1, j, "v")
             ho, co = rigid_body_momentum(qo, vo, obj.mass, obj.inertia, obj.com)
             ho1, _ = rigid_body_momentum(qo1, vo1, obj.mass, obj.inertia, obj.com)
-            wrench_o = wrench_sum(co, self._object_contacts(z, p, mode), obj.mass)
+            wrench_o = wrench_sum(co, self._object_contacts(z, p, mode, j), obj.mass)
             rows += [ho1 - ho - wrench_o * dt, qo1 - qo - vo1 * dt]
         return rows
+
+    # --- contacts ---------------------------------------------------------------------------
 
     def _contacts(self, z, z1, p1, mode: NodeMode, mode_next: NodeMode) -> list[ca.SX]:
         """Equalities of node k + 1's contacts."""
@@ -343,68 +389,138 @@ class StageBuilder:
         for i in range(2):
             if mode_next.feet[i]:
                 r, r_dot, R, w = self._foot(z1, i)
-                surface = _par(p1, "foot_surface_z")[i]
-                slack = _var(z1, "foot_slack")[i]
+                surface = self._par(p1, "foot_surface_z")[i]
+                slack = self._var(z1, "foot_slack")[i]
                 before = self._foot(z, i)[0] if mode.feet[i] else None
                 rows.append(patch_contact(r, r_dot, R, surface, k_z, slack, before))
                 if not mode.feet[i]:
                     rows.append(no_rolling(w))  # (2d) at touchdown
-        if not mode_next.object_active:
-            return rows
-        R_o, p_o, w_o = self._object_frame(z1)
         for i in range(2):
-            if mode_next.hands[i]:
-                r_palm, R_palm, w_palm = self._palm(z1, i)
-                r_j, R_j = self._hand_contact(z1, p1, i)
-                r_j = r_j + self.palm_radius * R_j[:, 2]  # the palm centre sits off the face
-                slack = _var(z1, "hand_slack")[3 * i : 3 * i + 3]
-                rows_i = interactive_contact(r_palm, r_j, slack, R_palm, R_j, w_palm, w_o)
-                if mode.hands[i]:
-                    rows_i = ca.vertcat(rows_i[0:5], ca.dot(R_j[:, 2], w_palm - w_o))
-                rows.append(rows_i)
-        # Where the object starts to move its state at k and the wrench on it are fixed, so
-        # (1) alone fixes its state at k + 1: a support contact there too would repeat it
-        # and make the constraint Jacobian rank-deficient.
-        if mode_next.object_supported and mode.object_active:
-            vo1 = _var(z1, "object_v")
-            surface = _par(p1, "support_z")
-            slack = _var(z1, "support_slack")
-            before = _var(z, "object_q")[0:3] if mode.object_supported else None
-            rows.append(patch_contact(p_o, vo1[0:3], R_o, surface, k_z, slack, before))
-            if not mode.object_supported:
-                rows.append(no_rolling(w_o))
+            j = mode_next.hands[i]
+            if j is None:
+                continue
+            r_palm, R_palm, w_palm = self._palm(z1, i)
+            r_j, R_j = self._hand_contact(z1, p1, i, j)
+            r_j = r_j + self.palm_radius * R_j[:, 2]  # the palm centre sits off the face
+            slack = self._var(z1, "hand_slack")[3 * i : 3 * i + 3]
+            w_o = self._object_frame(z1, j).omega
+            rows_i = interactive_contact(r_palm, r_j, slack, R_palm, R_j, w_palm, w_o)
+            if mode.hands[i] == j:
+                rows_i = ca.vertcat(rows_i[0:5], ca.dot(R_j[:, 2], w_palm - w_o))
+            rows.append(rows_i)
+        for j, obj in enumerate(self.objects):
+            # Where an object starts to move its state at k and the wrenches on it are
+            # fixed, so (1) alone fixes its state at k + 1: a support contact there too
+            # would repeat it and make the constraint Jacobian rank-deficient.
+            support = mode_next.objects[j].support
+            if support is None or not (mode.objects[j].active and mode_next.objects[j].active):
+                continue
+            on_before = mode.objects[j].support == support
+            base = getattr(support, "base", None)
+            contact = SupportContact(
+                obj=obj,
+                now=self._object_frame(z1, j),
+                before=self._object_frame(z, j) if on_before else None,
+                base_now=self._object_frame(z1, base) if base is not None else None,
+                base_before=self._object_frame(z, base) if base is not None else None,
+                height=self._opar(p1, j, "support_z"),
+                stiffness=k_z,
+                slack=self._ovar(z1, j, "support_slack"),
+            )
+            rows.append(support.equalities(contact))
         return rows
 
-    def _inequalities(self, z, p, mode: NodeMode) -> list[ca.SX]:
-        """Inequalities (>= 0) of (3) at node k."""
-        rows = []
+    def _prehensile(self, j: int) -> bool:
+        return bool(self.contact.prehensile or self.objects[j].prehensile)
+
+    def _wrench_rows(self, z, p, mode: NodeMode) -> tuple[list[ca.SX], list[ca.SX]]:
+        """Node k's rows on its wrenches: equalities (a chassis's (7b)) and inequalities
+        (>= 0) of (3)."""
+        equalities, inequalities = [], []
         for i in range(2):
             if mode.feet[i]:
                 R = self._foot(z, i)[2]
-                w = _var(z, "foot_wrench")[6 * i : 6 * i + 6]
+                w = self._var(z, "foot_wrench")[6 * i : 6 * i + 6]
                 mu = self.contact.floor_friction
-                rows.append(friction_cone_cop(w[0:3], w[3:6], R, mu, *self.sole_half))
-            if mode.hands[i] and not self.contact.prehensile:
-                _, R_face = self._hand_contact(z, p, i)
-                w = _var(z, "hand_wrench")[6 * i : 6 * i + 6]
-                mu, half = self.obj.friction, self.contact.palm_half_extents_m
-                rows.append(friction_cone_cop(w[0:3], w[3:6], R_face, mu, *half))
-        if mode.object_active and mode.object_supported:
-            R_o, _, _ = self._object_frame(z)
-            w = _var(z, "support_wrench")
-            half = self.obj.half_extents
-            rows.append(friction_cone_cop(w[0:3], w[3:6], R_o, self.obj.friction, half[0], half[1]))
-        return rows
+                inequalities.append(friction_cone_cop(w[0:3], w[3:6], R, mu, *self.sole_half))
+            j = mode.hands[i]
+            if j is not None and not self._prehensile(j):
+                _, R_face = self._hand_contact(z, p, i, j)
+                w = self._hand_wrench(z, i)
+                mu, half = self.objects[j].friction, self.contact.palm_half_extents_m
+                inequalities.append(friction_cone_cop(w[0:3], w[3:6], R_face, mu, *half))
+        for j, obj in enumerate(self.objects):
+            if mode.supported(j):
+                support = mode.objects[j].support
+                frame, w = self._object_frame(z, j), self._ovar(z, j, "support_wrench")
+                equalities.append(support.wrench_equalities(obj, frame, w))
+                inequalities.append(support.inequalities(obj, frame, w))
+        return equalities, inequalities
 
-    def _object_environment(self, z: ca.SX) -> list[ca.SX]:
-        """p (11) of each corner of the object in each obstacle, and of the obstacles'
+    # --- costs and collisions ----------------------------------------------------------------
+
+    def node_cost(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> ca.SX:
+        """Node k's share of (8) plus the keyframe and goal costs its parameters switch on,
+        but for the collision penalties (:meth:`collision_terms`)."""
+        w, var, par = self.w, self._var, self._par
+        q, v = var(z, "q"), var(z, "v")
+        com = self._kin(z, "com")
+        yaw_ref = par(p, "yaw_ref")
+        feet = [self._foot(z, i) for i in range(2)]
+        if mode.stance:
+            c_all = com
+            carried = [j for j in range(len(self.objects)) if mode.carried(j)]
+            if carried:  # the CoM of the robot and what it carries
+                moment, mass = self.kin.mass * com, self.kin.mass
+                for j in carried:
+                    obj = self.objects[j]
+                    qo, vo = self._ovar(z, j, "q"), self._ovar(z, j, "v")
+                    _, co = rigid_body_momentum(qo, vo, obj.mass, obj.inertia, obj.com)
+                    moment, mass = moment + obj.mass * co, mass + obj.mass
+                c_all = moment / mass
+            (r_l, _, R_l, _), (r_r, _, R_r, _) = feet
+            cost = stance_cost(w, q, c_all, r_l, r_r, R_l, R_r, yaw_ref)
+            cost += par(p, "kf_foot_on") * keyframe_foot_cost(w, r_l, r_r, par(p, "kf_foot"))
+        else:
+            swing = next(i for i in range(2) if not mode.feet[i])
+            height = feet[swing][0][2] - par(p, "foot_surface_z")[swing]
+            cost = walking_cost(w, q, height, yaw_ref)
+        active = [j for j in range(len(self.objects)) if mode.objects[j].active]
+        wrenches = ca.vertcat(
+            var(z, "foot_wrench"),
+            var(z, "hand_wrench"),
+            *[self._ovar(z, j, "support_wrench") for j in active],
+        )
+        cost += regularization_cost(w, q, v, wrenches, self._base_omega(q, v), var(z, "dt"))
+        slacks = ca.vertcat(
+            var(z, "foot_slack"),
+            var(z, "hand_slack"),
+            *[self._ovar(z, j, "support_slack") for j in range(len(self.objects))],
+        )
+        cost += w.slack * ca.sumsqr(slacks)
+        q_kf = ca.vertcat(0.0, 0.0, par(p, "kf_base"))
+        cost += par(p, "kf_base_on") * keyframe_base_cost(w, q, q_kf)
+        for j in active:
+            qo = self._ovar(z, j, "q")
+            goal = object_goal_cost(w, qo, self._opar(p, j, "goal"))
+            cost += self._opar(p, j, "goal_on") * goal
+            cost += w.object_upright * ca.sumsqr(qo[3:5])
+        return cost
+
+    def _object_box(self, z: ca.SX, j: int) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """Object j's collision box: centre [m], rotation, half sizes (3,) [m] (its patch's,
+        and half its height: its frame sits at the bottom face, the CoM at half height)."""
+        frame, obj = self._object_frame(z, j), self.objects[j]
+        return frame.p + frame.R @ obj.com, frame.R, ca.vertcat(obj.half_extents, obj.com[2])
+
+    def _object_environment(self, z: ca.SX, j: int) -> list[ca.SX]:
+        """p (11) of each corner of object j in each obstacle, and of the obstacles'
         vertical edges in the object."""
-        R_o, p_o, _ = self._object_frame(z)
-        half = self._object_half_size()
-        corners = [p_o + R_o @ c for c in box_corners(half)]
-        centre = p_o + R_o @ self.obj.com
+        centre, R_o, half = self._object_box(z, j)
+        bottom = self._object_frame(z, j).p
+        corners = [bottom + R_o @ c for c in box_corners(half)]
         out = []
-        for obstacle, count in zip(self.obstacles, self.edge_counts, strict=True):
+        for obstacle, count in zip(self.obstacles, self.edge_counts[j], strict=True):
             middle, R, box = obstacle.frame()
             out += [sphere_box_penetration(c, 0.0, middle, R, box, self.collision) for c in corners]
             out += [
@@ -413,68 +529,28 @@ class StageBuilder:
             ]
         return out
 
-    def node_cost(self, z: ca.SX, p: ca.SX, mode: NodeMode) -> ca.SX:
-        """Node k's share of (8) plus the keyframe and goal costs its parameters switch on,
-        but for the collision penalties (:meth:`collision_terms`)."""
-        w = self.w
-        q, v = _var(z, "q"), _var(z, "v")
-        com = _kin(z, "com")
-        yaw_ref = _par(p, "yaw_ref")
-        feet = [self._foot(z, i) for i in range(2)]
-        if mode.stance:
-            c_all = com
-            if mode.carried:
-                _, co = rigid_body_momentum(
-                    _var(z, "object_q"),
-                    _var(z, "object_v"),
-                    self.obj.mass,
-                    self.obj.inertia,
-                    self.obj.com,
-                )
-                total = self.kin.mass + self.obj.mass
-                c_all = (self.kin.mass * com + self.obj.mass * co) / total
-            (r_l, _, R_l, _), (r_r, _, R_r, _) = feet
-            cost = stance_cost(w, q, c_all, r_l, r_r, R_l, R_r, yaw_ref)
-            cost += _par(p, "kf_foot_on") * keyframe_foot_cost(w, r_l, r_r, _par(p, "kf_foot"))
-        else:
-            swing = next(i for i in range(2) if not mode.feet[i])
-            height = feet[swing][0][2] - _par(p, "foot_surface_z")[swing]
-            cost = walking_cost(w, q, height, yaw_ref)
-        wrenches = ca.vertcat(_var(z, "foot_wrench"), _var(z, "hand_wrench"))
-        if mode.object_active:
-            wrenches = ca.vertcat(wrenches, _var(z, "support_wrench"))
-        cost += regularization_cost(w, q, v, wrenches, self._base_omega(q, v), _var(z, "dt"))
-        slacks = ca.vertcat(_var(z, "foot_slack"), _var(z, "hand_slack"), _var(z, "support_slack"))
-        cost += w.slack * ca.sumsqr(slacks)
-        q_kf = ca.vertcat(0.0, 0.0, _par(p, "kf_base"))
-        cost += _par(p, "kf_base_on") * keyframe_base_cost(w, q, q_kf)
-        if mode.object_active:
-            qo = _var(z, "object_q")
-            cost += _par(p, "goal_on") * object_goal_cost(w, qo, _par(p, "goal"))
-            cost += w.object_upright * ca.sumsqr(qo[3:5])
-        return cost
-
     def collision_terms(self, z: ca.SX, mode: NodeMode) -> CollisionTerms:
         """p (11) at node k, each kind under its treatment: of the body points, and of the
-        palms not touching the object, in the object; of the object's corners while it is
-        carried, and of the palms, in the obstacles. A palm is its capsule's centre and end
-        spheres."""
+        palms not touching it, in each solid object; of each carried solid object's corners,
+        and of the palms, in the obstacles. A palm is its capsule's centre and end spheres."""
         cfg = self.collision
         palms = [self._palm_spheres(z, i) for i in range(2)]
         terms = CollisionTerms()
+        solid = [j for j, obj in enumerate(self.objects) if obj.solid]
         if cfg.object_body != "off":
-            R_o, p_o, _ = self._object_frame(z)
-            centre = p_o + R_o @ self.obj.com
-            half = self._object_half_size()
-            points = _kin(z, "body_points")
-            spheres = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
-            spheres += [s for i in range(2) if not mode.hands[i] for s in palms[i]]
-            terms.add(
-                cfg.object_body,
-                [sphere_box_penetration(c, r, centre, R_o, half, cfg) for c, r in spheres],
-            )
-        if cfg.object_environment != "off" and mode.object_active and not mode.object_supported:
-            terms.add(cfg.object_environment, self._object_environment(z))
+            points = self._kin(z, "body_points")
+            body = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
+            for j in solid:
+                centre, R_o, half = self._object_box(z, j)
+                spheres = body + [s for i in range(2) if mode.hands[i] != j for s in palms[i]]
+                terms.add(
+                    cfg.object_body,
+                    [sphere_box_penetration(c, r, centre, R_o, half, cfg) for c, r in spheres],
+                )
+        if cfg.object_environment != "off":
+            for j in solid:
+                if mode.carried(j):
+                    terms.add(cfg.object_environment, self._object_environment(z, j))
         if cfg.hands_environment != "off":
             terms.add(
                 cfg.hands_environment,
@@ -486,25 +562,22 @@ class StageBuilder:
             )
         return terms
 
-    def _object_half_size(self) -> ca.SX:
-        """(3,) the object's half sizes [m]: its patch's, and half its height (its frame
-        sits at the bottom face, the CoM at half height)."""
-        return ca.vertcat(self.obj.half_extents, self.obj.com[2])
-
     def _stage(
         self, mode: NodeMode, mode_next: NodeMode, last: bool, name: str
     ) -> tuple[ca.Function, np.ndarray, np.ndarray]:
-        z, z1 = ca.SX.sym("z", WIDTH), ca.SX.sym("z1", WIDTH)
-        p, p1 = ca.SX.sym("p", N_PARAMS), ca.SX.sym("p1", N_PARAMS)
+        z, p = self._symbols()
+        z1, p1 = self._symbols()
         equalities = self._dynamics(z, z1, p, mode, mode_next) + self._contacts(
             z, z1, p1, mode, mode_next
         )
+        wrench_eq, inequalities = self._wrench_rows(z, p, mode)
+        equalities += wrench_eq
         collisions = [self.collision_terms(z, mode)]
         cost = self.node_cost(z, p, mode)
         if last:
             cost += self.node_cost(z1, p1, mode_next)
             collisions.append(self.collision_terms(z1, mode_next))
-        inequalities = self._inequalities(z, p, mode) + [c.inequalities() for c in collisions]
+        inequalities += [c.inequalities() for c in collisions]
         eq = ca.vertcat(*equalities)
         ineq = ca.vertcat(*inequalities)
         softness, weight = self.collision.softness, self.w.collision

@@ -13,9 +13,12 @@ A subtask becomes phases by its predicate:
   rests on its support; the keyframe), ``lift`` (the object carried).
 - ``place``: steps carrying the object, ``lower``, ``set`` (the object on its target
   support, hands still on it; the keyframe).
+- ``push``: steps if needed, ``reach``, ``grasp`` (hands on the handle, the object still;
+  the keyframe: "the beginning of pushing", Sec. V-C.2), then steps with the hands on it
+  while it rolls on its support, and a last ``stance``.
 
-Other predicates (``step`` onto a box, ``push`` a trolley, ``grab`` a basket) need contact
-kinds that are not built yet and are refused with a clear error.
+Other predicates (``step`` onto a box, ``grab`` a basket) need contact kinds that are not
+built yet and are refused with a clear error.
 """
 
 from __future__ import annotations
@@ -74,8 +77,8 @@ class Phase:
         subtask: Index of the plan's subtask.
         nodes: Number of nodes.
         feet: (left, right) in contact with the ground.
-        hands: (left, right) in contact with the object.
-        object_supported: The object rests on a support (a table).
+        hands: (left, right) in contact with the subtask's object.
+        object_supported: The subtask's object rests on a support (a table, its wheels).
         keyframe: The phase's last node is its subtask's keyframe.
     """
 
@@ -134,8 +137,10 @@ def subtask_phases(
     steps: int,
     first_right: bool,
     cfg: ScheduleCfg,
+    push_steps: int = 0,
 ) -> list[Phase]:
-    """Phases of one subtask (see the module's docstring)."""
+    """Phases of one subtask (see the module's docstring); ``push_steps``: the steps of a
+    ``push`` after its keyframe."""
     if predicate == "walk":
         phases = _steps(subtask, steps, first_right, cfg)
         if not phases:
@@ -158,10 +163,19 @@ def subtask_phases(
             Phase("lower", subtask, cfg.lower_nodes, **carry),
             Phase("set", subtask, cfg.set_nodes, hands=both, keyframe=True),
         ]
+    if predicate == "push":
+        both = (True, True)
+        return [
+            *_steps(subtask, steps, first_right, cfg),
+            Phase("reach", subtask, cfg.reach_nodes),
+            Phase("grasp", subtask, cfg.grasp_nodes, hands=both, keyframe=True),
+            *_steps(subtask, push_steps, False, cfg, hands=both),
+            Phase("stance", subtask, cfg.double_support_nodes, hands=both),
+        ]
     raise ConfigError(
-        f"subtask {subtask} ({predicate!r}): the TO has contact schedules for 'walk', 'pick' "
-        "and 'place' only; stepping onto objects and pushing a trolley need the contact kinds "
-        "of the long-horizon scenarios, which are not built yet"
+        f"subtask {subtask} ({predicate!r}): the TO has contact schedules for 'walk', 'pick', "
+        "'place' and 'push' only; stepping onto objects and grabbing from a shelf need the "
+        "contact kinds of S1, which are not built yet"
     )
 
 

@@ -18,11 +18,12 @@ from locoman.scene.rotations import matrix_to_rpy, rpy_to_matrix
 from locoman.to.collision import CollisionCfg, Obstacle
 from locoman.to.costs import CostWeights, averaged_over_nodes
 from locoman.to.kinematics import SymbolicKinematics
-from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
+from locoman.to.layout import NodeLayout, ObjectModel
 from locoman.to.nlp import NLPResult, SolverBuildError, StageNLP, WarmStart
 from locoman.to.parameters import GlobalParameters
-from locoman.to.problem import ContactCfg, NodeMode, StageBuilder
+from locoman.to.problem import ContactCfg, NodeMode, ObjectMode, StageBuilder
 from locoman.to.schedule import Schedule, ScheduleCfg, step_count, subtask_phases
+from locoman.to.supports import OnObject, Support
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -32,16 +33,26 @@ class Keyframe:
     """What the TO takes from one subtask's keyframe.
 
     Attributes:
-        predicate: The subtask's verb (``walk``, ``pick``, ``place``).
+        predicate: The subtask's verb (``walk``, ``pick``, ``place``, ``push``).
         q35: The retargeted configuration.
-        object_pose: (6,) the object's (p, rpy) in the keyframe [m, rad].
-        goal: (3,) object x, y [m] and yaw [rad] the subtask must reach, or None.
+        object: Index of the subtask's object in :attr:`TOInputs.objects`; None for a walk
+            towards a fixed object.
+        object_poses: (M, 6) every object's (p, rpy) in the keyframe [m, rad].
+        goal: (3,) x, y [m] and yaw [rad] the subtask's object must reach by the subtask's
+            end, or None.
+        support: What the object rests on once a ``place`` subtask sets it down (None for
+            the other predicates).
+        support_height: [m] that support's surface height (world z, or in the supporting
+            object's frame for :class:`OnObject`).
     """
 
     predicate: str
     q35: np.ndarray
-    object_pose: np.ndarray
+    object: int | None
+    object_poses: np.ndarray
     goal: np.ndarray | None = None
+    support: Support | None = None
+    support_height: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,21 +61,30 @@ class TOInputs:
 
     Attributes:
         q_start: (35,) the robot at rest at the start.
-        object_start: (6,) the object's (p, rpy) at the start.
-        obj: The manipulated object.
+        objects: The scene's movable objects.
+        object_starts: (M, 6) each object's (p, rpy) at the start.
+        supports: What each object rests on at the start.
+        support_heights: (M,) [m] the height of each of those supports' surface.
         keyframes: One per subtask, in plan order.
-        hand_points: (2, 3) left and right hand contacts in the object frame [m].
-        hand_frames: (2, 3, 3) their contact frames in the object frame (z: outward normal).
+        hand_points: (M, 2, 3) left and right hand contacts in each object's frame [m].
+        hand_frames: (M, 2, 3, 3) their contact frames in the object's frame (z: outward
+            normal).
         obstacles: The scene's fixed boxes (tables, shelves) for the collision terms.
     """
 
     q_start: np.ndarray
-    object_start: np.ndarray
-    obj: ObjectModel
+    objects: tuple[ObjectModel, ...]
+    object_starts: np.ndarray
+    supports: tuple[Support, ...]
+    support_heights: np.ndarray
     keyframes: Sequence[Keyframe]
     hand_points: np.ndarray
     hand_frames: np.ndarray
     obstacles: tuple[Obstacle, ...] = ()
+
+    @property
+    def layout(self) -> NodeLayout:
+        return NodeLayout.of(len(self.objects))
 
 
 # The solver backends (``solve.solver.backend``): IPOPT's options for each. MUMPS is the
@@ -160,20 +180,22 @@ class Trajectory:
     q: np.ndarray  # (N, 35)
     v: np.ndarray  # (N, 35)
     foot_wrench: np.ndarray  # (N, 2, 6) force [N], moment [N m] at each sole centre
-    hand_wrench: np.ndarray  # (N, 2, 6) the object's wrench on each hand, at the contact
-    object_q: np.ndarray  # (N, 6)
-    object_v: np.ndarray  # (N, 6)
-    support_wrench: np.ndarray  # (N, 6) at the object's bottom centre
+    hand_wrench: np.ndarray  # (N, 2, 6) the touched object's wrench on each hand
+    object_q: np.ndarray  # (N, M, 6)
+    object_v: np.ndarray  # (N, M, 6)
+    support_wrench: np.ndarray  # (N, M, 6) at each object's frame origin
     foot_slack: np.ndarray  # (N, 2) [m]
     hand_slack: np.ndarray  # (N, 2, 3) [m]
+    support_slack: np.ndarray  # (N, M) [m]
     dt: np.ndarray  # (N,) [s]; the last is unused
     feet_contact: np.ndarray  # (N, 2) bool
-    hands_contact: np.ndarray  # (N, 2) bool
-    object_active: np.ndarray  # (N,) bool
-    object_supported: np.ndarray  # (N,) bool
+    hand_object: np.ndarray  # (N, 2) index of the object each hand touches, -1: none
+    object_active: np.ndarray  # (N, M) bool
+    support_kind: np.ndarray  # (N, M) str: a Support's name, "none" while carried
+    support_base: np.ndarray  # (N, M) int: the supporting object, -1: the world
     phase: np.ndarray  # (N,) str
     subtask: np.ndarray  # (N,) int
-    hand_points: np.ndarray  # (2, 3) hand contacts in the object frame [m]
+    hand_points: np.ndarray  # (M, 2, 3) hand contacts in each object's frame [m]
     warm_start: WarmStart | None = None  # the primal-dual point, for the next grid cell
 
     @property
@@ -195,6 +217,15 @@ def sole_points(q35: np.ndarray) -> np.ndarray:
     return np.array([data.oMf[model.getFrameId(link)].act(centre) for link in g1.FOOT_LINKS])
 
 
+def push_steps(inputs: TOInputs, keyframe: Keyframe, cfg: ScheduleCfg) -> int:
+    """Steps of a ``push`` after its keyframe: each foot steps often enough to follow the
+    object from its keyframe pose to its goal with steps of at most ``step_length_m``."""
+    if keyframe.goal is None:
+        return 0
+    travel = float(np.linalg.norm(keyframe.goal[:2] - keyframe.object_poses[keyframe.object][:2]))
+    return 2 * math.ceil(travel / cfg.step_length_m)
+
+
 def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
     """Phases of every subtask; steps where the keyframes' feet move (Sec. IV)."""
     phases = []
@@ -208,71 +239,128 @@ def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
         lateral = heading[0] * move[1] - heading[1] * move[0]
         turn = math.remainder(_yaw(kf.q35) - yaw_before, math.tau)
         first_right = (lateral + 0.3 * turn) < 0.0
-        phases += subtask_phases(kf.predicate, i, steps, first_right, cfg)
+        pushed = push_steps(inputs, kf, cfg) if kf.predicate == "push" else 0
+        phases += subtask_phases(kf.predicate, i, steps, first_right, cfg, pushed)
         feet_before, yaw_before = feet, _yaw(kf.q35)
+        if pushed:  # the feet follow the object to its goal
+            feet_before = feet_before + (kf.goal[:2] - kf.object_poses[kf.object][:2])
     return Schedule.from_phases(phases)
 
 
-def node_modes(schedule: Schedule) -> list[NodeMode]:
-    """The contact mode of every node; the object is simulated from the first touch on."""
-    touch = schedule.first_touch()
+def _supports(inputs: TOInputs, schedule: Schedule) -> list[list[tuple[Support | None, float]]]:
+    """Per node, each object's (support, surface height [m]): where the scene has it until
+    a subtask carries it, None while carried, then what its ``place`` subtask sets it on."""
+    current = list(zip(inputs.supports, inputs.support_heights, strict=True))
+    out = []
+    for n in range(schedule.nodes):
+        phase = schedule.phase(n)
+        kf = inputs.keyframes[phase.subtask]
+        if n == 0 or kf.object is None:
+            pass
+        elif phase.carried:
+            current[kf.object] = (None, 0.0)
+        elif current[kf.object][0] is None:
+            if kf.support is None:
+                raise ValueError(
+                    f"subtask {phase.subtask} ({kf.predicate}) sets object {kf.object} down "
+                    "without a support to set it on"
+                )
+            current[kf.object] = (kf.support, kf.support_height)
+        out.append(list(current))
+    return out
+
+
+def _active_from(inputs: TOInputs, schedule: Schedule, supports) -> list[int]:
+    """Per object, the first node at which it is simulated: a hand touches it, or it rests
+    on, or carries, a simulated object (the trolley once the box is set on it); never:
+    the node count."""
+    n = schedule.nodes
+    first = [n] * len(inputs.objects)
+    for k in range(1, n):
+        phase = schedule.phase(k)
+        if any(phase.hands):
+            j = inputs.keyframes[phase.subtask].object
+            first[j] = min(first[j], k)
+    changed = True
+    while changed:
+        changed = False
+        for k in range(n):
+            for j, (support, _) in enumerate(supports[k]):
+                if not isinstance(support, OnObject):
+                    continue
+                b = support.base
+                if min(first[j], first[b]) <= k and max(first[j], first[b]) > k:
+                    first[j] = first[b] = k
+                    changed = True
+    return first
+
+
+def node_modes(inputs: TOInputs, schedule: Schedule) -> list[NodeMode]:
+    """The contact mode of every node."""
+    supports = _supports(inputs, schedule)
+    first = _active_from(inputs, schedule, supports)
     modes = []
     for n in range(schedule.nodes):
-        ph = schedule.phase(n)
-        active = touch is not None and n >= touch
-        supported = ph.object_supported or not active
-        modes.append(NodeMode(ph.feet, ph.hands if n > 0 else (False, False), active, supported))
+        phase = schedule.phase(n)
+        touched = inputs.keyframes[phase.subtask].object
+        hands = tuple(touched if (h and n > 0) else None for h in phase.hands)
+        objects = tuple(
+            ObjectMode(n >= first[j], supports[n][j][0]) for j in range(len(inputs.objects))
+        )
+        modes.append(NodeMode(phase.feet, hands, objects))
     return modes
-
-
-def _frames_columns(frames: np.ndarray) -> np.ndarray:
-    """(2, 3, 3) -> (18,), each matrix column-major as CasADi reshapes it."""
-    return np.concatenate([f.ravel(order="F") for f in frames])
 
 
 def node_parameters(
     inputs: TOInputs, schedule: Schedule, keyframe_costs: tuple[bool, bool]
 ) -> np.ndarray:
-    """(N_PARAMS, N): references and switches per node.
+    """(n_params, N): references and switches per node.
 
     The yaw reference goes linearly, over each subtask's nodes, from the previous keyframe's
     yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes of each
-    subtask after its last step; ``keyframe_costs`` = (base, foot) switches them.
+    subtask after its last step; ``keyframe_costs`` = (base, foot) switches them. A
+    subtask's goal holds its object at the subtask's last node. The hands' contacts are
+    those on the object they touch, elsewhere on the first object a hand touches.
     """
+    layout = inputs.layout
+    par, opar = layout.parameters, layout.object_parameters
     n = schedule.nodes
-    P = np.zeros((N_PARAMS, n))
+    P = np.zeros((layout.n_params, n))
     kf_nodes = schedule.keyframe_nodes()
     yaw_before = _yaw(inputs.q_start)
-    support_z = float(inputs.object_start[2])
     for i, kf in enumerate(inputs.keyframes):
         nodes = [k for k in range(1, n) if schedule.subtask_of(k) == i]
         yaws = np.linspace(yaw_before, _yaw(kf.q35), len(nodes) + 1)[1:]
-        P[PARAMETERS["yaw_ref"].start, nodes] = yaws
+        P[par["yaw_ref"].start, nodes] = yaws
         if i == 0:
-            P[PARAMETERS["yaw_ref"].start, 0] = yaw_before
+            P[par["yaw_ref"].start, 0] = yaw_before
         yaw_before = _yaw(kf.q35)
         node = kf_nodes[i]
         if keyframe_costs[0]:
-            P[PARAMETERS["kf_base_on"], node] = 1.0
-            P[PARAMETERS["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
+            P[par["kf_base_on"], node] = 1.0
+            P[par["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
         if keyframe_costs[1]:
             last_swing = max(
                 (k for k in nodes if not schedule.phase(k).stance), default=nodes[0] - 1
             )
             stance = [k for k in nodes if k > last_swing and schedule.phase(k).stance]
-            P[PARAMETERS["kf_foot_on"], stance] = 1.0
-            P[PARAMETERS["kf_foot"], stance] = sole_points(kf.q35)[:, :2].mean(axis=0)[:, None]
+            P[par["kf_foot_on"], stance] = 1.0
+            P[par["kf_foot"], stance] = sole_points(kf.q35)[:, :2].mean(axis=0)[:, None]
         if kf.goal is not None:
-            P[PARAMETERS["goal"], n - 1] = kf.goal
-            P[PARAMETERS["goal_on"], n - 1] = 1.0
-            support_z = float(kf.object_pose[2])
-        for k in nodes:
-            P[PARAMETERS["support_z"], k] = (
-                support_z if schedule.phase(k).name == "set" else inputs.object_start[2]
-            )
-    P[PARAMETERS["support_z"], 0] = inputs.object_start[2]
-    P[PARAMETERS["hand_points"], :] = inputs.hand_points.ravel()[:, None]
-    P[PARAMETERS["hand_frames"], :] = _frames_columns(inputs.hand_frames)[:, None]
+            P[opar(kf.object, "goal"), nodes[-1]] = kf.goal
+            P[opar(kf.object, "goal_on"), nodes[-1]] = 1.0
+    for k, row in enumerate(_supports(inputs, schedule)):
+        for j, (_, height) in enumerate(row):
+            P[opar(j, "support_z"), k] = height
+    touched = [kf.object for kf in inputs.keyframes]
+    modes = node_modes(inputs, schedule)
+    first = next((j for m in modes for j in m.hands if j is not None), touched[0])
+    points, frames = par["hand_points"].start, par["hand_frames"].start
+    for k, mode in enumerate(modes):
+        for i, j in enumerate(mode.hands):
+            j = first if j is None else j
+            P[points + 3 * i : points + 3 * i + 3, k] = inputs.hand_points[j, i]
+            P[frames + 9 * i : frames + 9 * i + 9, k] = inputs.hand_frames[j, i].ravel(order="F")
     return P
 
 
@@ -285,34 +373,51 @@ ANGULAR_SPEED_MAX = 2.0 * math.pi  # base and object Euler rates [rad/s]
 WRENCH_LEVER = 0.5  # moment bound per newton of force bound [m]
 
 
-def _sanity_bounds(lo: np.ndarray, hi: np.ndarray, weight: float) -> None:
-    """:data:`TILT_MAX` and the speed bounds on the base and the object; every contact
-    force within twice the weight of robot and object [N], every moment within that times
+def _sanity_bounds(layout: NodeLayout, lo: np.ndarray, hi: np.ndarray, weight: float) -> None:
+    """:data:`TILT_MAX` and the speed bounds on the base and the objects; every contact
+    force within twice the weight of robot and objects [N], every moment within that times
     :data:`WRENCH_LEVER`."""
-    for q_name, v_name in (("q", "v"), ("object_q", "object_v")):
-        q, v = VARIABLES[q_name].start, VARIABLES[v_name].start
+    var = layout.variables
+    pairs = [(var["q"], var["v"])] + [
+        (layout.object_variables(j, "q"), layout.object_variables(j, "v"))
+        for j in range(layout.n_objects)
+    ]
+    for q_slice, v_slice in pairs:
+        q, v = q_slice.start, v_slice.start
         lo[q + 3 : q + 5], hi[q + 3 : q + 5] = -TILT_MAX, TILT_MAX
         lo[v : v + 3], hi[v : v + 3] = -LINEAR_SPEED_MAX, LINEAR_SPEED_MAX
         lo[v + 3 : v + 6], hi[v + 3 : v + 6] = -ANGULAR_SPEED_MAX, ANGULAR_SPEED_MAX
     force = 2.0 * weight
-    for name, count in (("foot_wrench", 2), ("hand_wrench", 2), ("support_wrench", 1)):
-        start = VARIABLES[name].start
-        for i in range(count):
-            f = start + 6 * i
+    wrenches = [var["foot_wrench"], var["hand_wrench"]] + [
+        layout.object_variables(j, "support_wrench") for j in range(layout.n_objects)
+    ]
+    for block in wrenches:
+        for f in range(block.start, block.stop, 6):
             lo[f : f + 3], hi[f : f + 3] = -force, force
             lo[f + 3 : f + 6], hi[f + 3 : f + 6] = -WRENCH_LEVER * force, WRENCH_LEVER * force
+
+
+def _rest_wrench(mass: float) -> np.ndarray:
+    """(6,) the support's wrench on an object of ``mass`` [kg] at rest."""
+    return np.r_[0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0]
 
 
 def bounds(
     inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Variable bounds (WIDTH, N): joint position and velocity limits, the initial state,
-    robot and object at rest at the end, inactive contacts' wrenches and slacks at zero,
-    the untouched object at rest."""
+    """Variable bounds (width, N): joint position and velocity limits, the initial state,
+    robot and objects at rest at the end, inactive contacts' wrenches and slacks at zero,
+    the objects not yet simulated at rest where the scene has them."""
+    layout = inputs.layout
+    var, ovar = layout.variables, layout.object_variables
     model = g1.g1_pinocchio_model()
     n = schedule.nodes
-    lo, hi = np.full((WIDTH, n), -np.inf), np.full((WIDTH, n), np.inf)
-    q, v = VARIABLES["q"], VARIABLES["v"]
+    lo, hi = np.full((layout.width, n), -np.inf), np.full((layout.width, n), np.inf)
+
+    def fix(where, k, value=0.0) -> None:
+        lo[where, k] = hi[where, k] = value
+
+    q, v = var["q"], var["v"]
     lo[q.start + 6 : q.stop], hi[q.start + 6 : q.stop] = (
         model.lowerPositionLimit[7:, None],
         model.upperPositionLimit[7:, None],
@@ -321,85 +426,90 @@ def bounds(
         -model.velocityLimit[6:, None],
         model.velocityLimit[6:, None],
     )
-    dt = VARIABLES["dt"].start
+    dt = var["dt"].start
     lo[dt], hi[dt] = cfg.dt_bounds
-    lo[dt, -1] = hi[dt, -1] = cfg.dt_bounds[0]
-    _sanity_bounds(lo, hi, (pin.computeTotalMass(model) + inputs.obj.mass) * GRAVITY)
-    lo[q, 0] = hi[q, 0] = inputs.q_start
-    # The motion starts and ends at rest, the object too (evaluate checks it stands still
-    # on its support at the end; without this tiny's box still turned at 0.37 rad/s).
-    lo[v, 0] = hi[v, 0] = lo[v, -1] = hi[v, -1] = 0.0
-    lo[VARIABLES["object_v"], -1] = hi[VARIABLES["object_v"], -1] = 0.0
-    rest = np.r_[0.0, 0.0, inputs.obj.mass * GRAVITY, 0.0, 0.0, 0.0]
+    fix(dt, -1, cfg.dt_bounds[0])
+    masses = [obj.mass for obj in inputs.objects]
+    _sanity_bounds(layout, lo, hi, (pin.computeTotalMass(model) + sum(masses)) * GRAVITY)
+    fix(q, 0, inputs.q_start)
+    # The motion starts and ends at rest, the objects too (evaluate checks that they stand
+    # still on a support at the end; without this tiny's box still turned at 0.37 rad/s).
+    fix(v, 0)
+    fix(v, -1)
+    for j in range(layout.n_objects):
+        fix(ovar(j, "v"), -1)
     for k, mode in enumerate(modes):
         last = k == n - 1
         for i in range(2):
-            foot = slice(
-                VARIABLES["foot_wrench"].start + 6 * i, VARIABLES["foot_wrench"].start + 6 * i + 6
-            )
-            hand = slice(
-                VARIABLES["hand_wrench"].start + 6 * i, VARIABLES["hand_wrench"].start + 6 * i + 6
-            )
+            foot = var["foot_wrench"].start + 6 * i
+            hand = var["hand_wrench"].start + 6 * i
             if not mode.feet[i] or last:
-                lo[foot, k] = hi[foot, k] = 0.0
-            if not mode.hands[i] or last:
-                lo[hand, k] = hi[hand, k] = 0.0
+                fix(slice(foot, foot + 6), k)
+            if mode.hands[i] is None or last:
+                fix(slice(hand, hand + 6), k)
             if not mode.feet[i] or k == 0:
-                lo[VARIABLES["foot_slack"].start + i, k] = hi[
-                    VARIABLES["foot_slack"].start + i, k
-                ] = 0.0
-            if not mode.hands[i] or not mode.object_active:
-                s = VARIABLES["hand_slack"].start + 3 * i
-                lo[s : s + 3, k] = hi[s : s + 3, k] = 0.0
-        support = VARIABLES["support_wrench"]
-        if not mode.object_active:
-            lo[VARIABLES["object_q"], k] = hi[VARIABLES["object_q"], k] = inputs.object_start
-            lo[VARIABLES["object_v"], k] = hi[VARIABLES["object_v"], k] = 0.0
-            lo[support, k] = hi[support, k] = rest
-        elif not mode.object_supported or last:
-            lo[support, k] = hi[support, k] = 0.0
-        if not (mode.object_active and mode.object_supported):
-            s = VARIABLES["support_slack"].start
-            lo[s, k] = hi[s, k] = 0.0
+                fix(var["foot_slack"].start + i, k)
+            if mode.hands[i] is None:
+                s = var["hand_slack"].start + 3 * i
+                fix(slice(s, s + 3), k)
+        for j, obj_mode in enumerate(mode.objects):
+            support = ovar(j, "support_wrench")
+            if not obj_mode.active:
+                fix(ovar(j, "q"), k, inputs.object_starts[j])
+                fix(ovar(j, "v"), k)
+                fix(support, k, _rest_wrench(masses[j]))
+            elif obj_mode.support is None or last:
+                fix(support, k)
+            if not mode.supported(j):
+                fix(ovar(j, "support_slack"), k)
     return lo, hi
 
 
 SQUEEZE_MARGIN = 2.0
 
 
+def _carried_load(inputs: TOInputs, mode: NodeMode, j: int) -> float:
+    """[kg] object j's mass and what rests on it, transitively."""
+    return inputs.objects[j].mass + sum(_carried_load(inputs, mode, r) for r in mode.riders(j))
+
+
 def initial_guess(
     inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg, robot_mass: float
 ) -> np.ndarray:
-    """(WIDTH, N): Sec. IV-C.2's subtask-like warm start: each subtask's nodes at its
-    keyframe (robot and object), at rest, the weight shared by the feet in contact and the
-    carried object's weight by the hands, which squeeze it hard enough for their friction
-    cones (3a) to hold it, :data:`SQUEEZE_MARGIN` times over."""
+    """(width, N): Sec. IV-C.2's subtask-like warm start: each subtask's nodes at its
+    keyframe (robot and objects), at rest, the weight shared by the feet in contact, each
+    supported object's load by its support, and a carried object's weight by the hands,
+    which squeeze it hard enough for their friction cones (3a) to hold it,
+    :data:`SQUEEZE_MARGIN` times over."""
+    layout = inputs.layout
+    var, ovar = layout.variables, layout.object_variables
     n = schedule.nodes
-    X = np.zeros((WIDTH, n))
-    X[VARIABLES["dt"]] = 0.5 * sum(cfg.dt_bounds)
+    X = np.zeros((layout.width, n))
+    X[var["dt"]] = 0.5 * sum(cfg.dt_bounds)
     for k in range(n):
         mode = modes[k]
         kf = inputs.keyframes[schedule.subtask_of(k)]
         use_kf = cfg.warm_start and k > 0
-        X[VARIABLES["q"], k] = kf.q35 if use_kf else inputs.q_start
-        X[VARIABLES["object_q"], k] = (
-            kf.object_pose if (use_kf and mode.object_active) else inputs.object_start
-        )
+        X[var["q"], k] = kf.q35 if use_kf else inputs.q_start
         weight = robot_mass * GRAVITY
-        if mode.carried:
-            weight += inputs.obj.mass * GRAVITY
-            R_object = rpy_to_matrix(X[VARIABLES["object_q"], k][3:6])
-            half = 0.5 * inputs.obj.mass * GRAVITY
-            for i in range(2):
-                s = VARIABLES["hand_wrench"].start + 6 * i
-                normal = R_object @ inputs.hand_frames[i][:, 2]
-                squeeze = SQUEEZE_MARGIN * half / inputs.obj.friction
-                X[s : s + 3, k] = np.r_[0.0, 0.0, -half] + squeeze * normal
-        elif mode.object_supported:
-            X[VARIABLES["support_wrench"].start + 2, k] = inputs.obj.mass * GRAVITY
+        for j, obj in enumerate(inputs.objects):
+            active = use_kf and mode.objects[j].active
+            X[ovar(j, "q"), k] = kf.object_poses[j] if active else inputs.object_starts[j]
+            if mode.carried(j):
+                weight += obj.mass * GRAVITY
+                R_object = rpy_to_matrix(X[ovar(j, "q"), k][3:6])
+                half = 0.5 * obj.mass * GRAVITY
+                for i in range(2):
+                    s = var["hand_wrench"].start + 6 * i
+                    normal = R_object @ inputs.hand_frames[j, i][:, 2]
+                    squeeze = SQUEEZE_MARGIN * half / obj.friction
+                    X[s : s + 3, k] = np.r_[0.0, 0.0, -half] + squeeze * normal
+            elif mode.supported(j):
+                load = _carried_load(inputs, mode, j)
+                X[ovar(j, "support_wrench").start + 2, k] = load * GRAVITY
         down = [i for i in range(2) if mode.feet[i]]
         for i in down:
-            X[VARIABLES["foot_wrench"].start + 6 * i + 2, k] = weight / len(down)
+            X[var["foot_wrench"].start + 6 * i + 2, k] = weight / len(down)
     return X
 
 
@@ -428,11 +538,18 @@ class TrajectoryOptimizer:
         if weights.average_over_nodes:
             weights = averaged_over_nodes(weights, self.schedule.nodes)
         self.inputs, self.cfg, self.weights = inputs, solver, weights
-        self.modes = node_modes(self.schedule)
+        self.modes = node_modes(inputs, self.schedule)
+        self.layout = inputs.layout
         model = g1.g1_pinocchio_model()
         self.kin = SymbolicKinematics(model)
         builder = StageBuilder(
-            self.kin, inputs.obj, contact_frames(), weights, contact, collision, inputs.obstacles
+            self.kin,
+            inputs.objects,
+            contact_frames(),
+            weights,
+            contact,
+            collision,
+            inputs.obstacles,
         )
         n = self.schedule.nodes
         keys: dict[tuple, list[int]] = {}
@@ -460,9 +577,9 @@ class TrajectoryOptimizer:
         if solver.max_wall_time_s is not None:
             ipopt["max_wall_time"] = float(solver.max_wall_time_s)
         self.nlp = StageNLP(
-            WIDTH,
+            self.layout.width,
             n,
-            N_PARAMS,
+            self.layout.n_params,
             builder.parameters.vector().size,
             groups,
             ipopt,
@@ -491,13 +608,14 @@ class TrajectoryOptimizer:
                 "the parameters' layout differs from the one this optimizer was built for "
                 "(another obstacle count?): build a new TrajectoryOptimizer"
             )
-        inputs = dataclasses.replace(self.inputs, obj=parameters.object(self.inputs.obj))
+        inputs = dataclasses.replace(self.inputs, objects=parameters.objects(self.inputs.objects))
         schedule, modes = self.schedule, self.modes
         P = node_parameters(inputs, schedule, keyframe_costs)
         lo, hi = bounds(inputs, schedule, modes, self.cfg)
         X0 = np.clip(initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass), lo, hi)
-        q, v = X0[VARIABLES["q"]], X0[VARIABLES["v"]]
-        X0[VARIABLES["kin"]] = np.asarray(self.kinematics.map(schedule.nodes)(q, v))
+        var = self.layout.variables
+        q, v = X0[var["q"]], X0[var["v"]]
+        X0[var["kin"]] = np.asarray(self.kinematics.map(schedule.nodes)(q, v))
         result = self.nlp.solve(
             X0.ravel(order="F"),
             lo.ravel(order="F"),
@@ -509,12 +627,19 @@ class TrajectoryOptimizer:
         return self._trajectory(result)
 
     def _trajectory(self, result: NLPResult) -> Trajectory:
-        n = self.schedule.nodes
-        Z = result.x.reshape(n, WIDTH)
+        n, layout = self.schedule.nodes, self.layout
+        Z = result.x.reshape(n, layout.width)
 
         def part(name: str) -> np.ndarray:
-            return Z[:, VARIABLES[name]]
+            return Z[:, layout.variables[name]]
 
+        def per_object(quantity: str) -> np.ndarray:
+            return np.stack(
+                [Z[:, layout.object_variables(j, quantity)] for j in range(layout.n_objects)],
+                axis=1,
+            )
+
+        objects = [m.objects for m in self.modes]
         phases = [self.schedule.phase(k).name if k > 0 else "start" for k in range(n)]
         return Trajectory(
             status=result.status,
@@ -530,21 +655,36 @@ class TrajectoryOptimizer:
             v=part("v"),
             foot_wrench=part("foot_wrench").reshape(n, 2, 6),
             hand_wrench=part("hand_wrench").reshape(n, 2, 6),
-            object_q=part("object_q"),
-            object_v=part("object_v"),
-            support_wrench=part("support_wrench"),
+            object_q=per_object("q"),
+            object_v=per_object("v"),
+            support_wrench=per_object("support_wrench"),
             foot_slack=part("foot_slack"),
             hand_slack=part("hand_slack").reshape(n, 2, 3),
+            support_slack=per_object("support_slack")[:, :, 0],
             dt=part("dt")[:, 0],
             feet_contact=np.array([m.feet for m in self.modes]),
-            hands_contact=np.array([m.hands for m in self.modes]),
-            object_active=np.array([m.object_active for m in self.modes]),
-            object_supported=np.array([m.object_supported for m in self.modes]),
+            hand_object=np.array(
+                [[-1 if j is None else j for j in m.hands] for m in self.modes], dtype=int
+            ),
+            object_active=np.array([[o.active for o in row] for row in objects]),
+            support_kind=np.array(
+                [[o.support.name if o.support else "none" for o in row] for row in objects]
+            ),
+            support_base=np.array(
+                [[_base_index(o.support) for o in row] for row in objects],
+                dtype=int,
+            ),
             phase=np.array(phases),
             subtask=np.array([self.schedule.subtask_of(k) for k in range(n)]),
             hand_points=self.inputs.hand_points.copy(),
             warm_start=result.warm_start,
         )
+
+
+def _base_index(support: Support | None) -> int:
+    """The supporting object's index, -1 for the world or none."""
+    base = getattr(support, "base", None)
+    return -1 if base is None else base
 
 
 def object_pose(T: np.ndarray) -> np.ndarray:
