@@ -9,7 +9,7 @@ import pytest
 from locoman.config.to import EvaluateCfg
 from locoman.errors import SceneError
 from locoman.sim.evaluate import object_at_rest, support_under
-from locoman.sim.pipeline import all_finite
+from locoman.sim.pipeline import all_finite, pose_matrix
 from locoman.sim.view import view
 
 
@@ -30,10 +30,33 @@ def objects() -> dict:
     return {"table": _table([0.55, 0.0, 0.0], yaw=0.3)}
 
 
+def _box_at(q) -> dict[str, np.ndarray]:
+    return {"box": pose_matrix(np.asarray(q, dtype=float))}
+
+
 def test_an_object_on_a_table_top_or_the_floor_rests_on_it(objects):
     on_table = np.r_[0.55 + 0.1, 0.05, 0.72, 0.0, 0.0, 0.2]
-    assert support_under(objects, on_table, 0.01) == "table"
-    assert support_under(objects, np.r_[2.0, 1.0, 0.004, 0.0, 0.0, 0.0], 0.01) == "floor"
+    assert support_under(objects, "box", _box_at(on_table), 0.01) == "table"
+    floor = _box_at(np.r_[2.0, 1.0, 0.004, 0.0, 0.0, 0.0])
+    assert support_under(objects, "box", floor, 0.01) == "floor"
+
+
+def test_an_object_rests_on_a_movable_one_where_that_one_ends():
+    """The box on the trolley's platform (0.55 m) after the trolley was pushed 1 m."""
+    trolley = {
+        "kind": "trolley",
+        "size_m": [0.8, 0.5, 0.55],
+        "pos_m": [0.2, -1.1, 0.0],
+        "quat_wxyz": [1.0, 0.0, 0.0, 0.0],
+        "movable": True,
+    }
+    objects = {"trolley": trolley}
+    poses = _box_at([1.3, -1.1, 0.55, 0.0, 0.0, 0.0])
+    poses["trolley"] = pose_matrix(np.r_[1.2, -1.1, 0.0, 0.0, 0.0, 0.0])
+    assert support_under(objects, "box", poses, 0.01) == "trolley"
+    poses["trolley"] = pose_matrix(np.r_[0.2, -1.1, 0.0, 0.0, 0.0, 0.0])  # left behind
+    assert support_under(objects, "box", poses, 0.01) is None
+    assert support_under(objects, "trolley", poses, 0.01) == "floor"
 
 
 @pytest.mark.parametrize(
@@ -45,17 +68,20 @@ def test_an_object_on_a_table_top_or_the_floor_rests_on_it(objects):
     ],
 )
 def test_an_object_in_mid_air_or_inside_a_table_rests_on_nothing(objects, where):
-    assert support_under(objects, np.r_[where, 0.0, 0.0, 0.0], 0.01) is None
+    assert support_under(objects, "box", _box_at(np.r_[where, 0.0, 0.0, 0.0]), 0.01) is None
 
 
 def test_at_rest_needs_a_support_upright_and_still(objects):
     q = np.r_[0.6, 0.0, 0.72, 0.0, 0.0, 0.0]
     still = np.zeros(6)
-    assert object_at_rest(objects, q, still, 0.01, 0.01, 0.1) == (True, "table")
+    def at_rest(q, v):
+        return object_at_rest(objects, "box", _box_at(q), q, v, 0.01, 0.01, 0.1)
+
+    assert at_rest(q, still) == (True, "table")
     tipped = q + np.r_[0, 0, 0, 0.3, 0, 0]
-    assert not object_at_rest(objects, tipped, still, 0.01, 0.01, 0.1)[0]
+    assert not at_rest(tipped, still)[0]
     moving = still + np.r_[0.05, 0, 0, 0, 0, 0]
-    assert not object_at_rest(objects, q, moving, 0.01, 0.01, 0.1)[0]
+    assert not at_rest(q, moving)[0]
 
 
 def test_a_nan_anywhere_in_the_trajectory_is_not_finite():

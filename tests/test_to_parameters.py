@@ -17,19 +17,22 @@ from locoman.to.collision import CollisionCfg, Obstacle
 from locoman.to.compile import SolverBuildError, compile_units
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
-from locoman.to.layout import N_PARAMS, VARIABLES, WIDTH, ObjectModel
-from locoman.to.problem import ContactCfg, NodeMode, StageBuilder
+from locoman.to.layout import NodeLayout, ObjectModel, object_key
+from locoman.to.problem import ContactCfg, NodeMode, ObjectMode, StageBuilder
 
 KIN = SymbolicKinematics(g1.g1_pinocchio_model())
 TABLE = Obstacle("table", np.array([1.0, 0.0, 0.36]), 0.2, np.array([0.3, 0.4, 0.36]))
-CARRY = NodeMode((True, True), (True, True), True, False)
+CARRY = NodeMode((True, True), (0, 0), (ObjectMode(True, None),))
+LAYOUT = NodeLayout.of(1)
+VARIABLES, WIDTH, N_PARAMS = LAYOUT.variables, LAYOUT.width, LAYOUT.n_params
+OBJECT_Q, OBJECT_V = object_key(0, "q"), object_key(0, "v")
 
 
 def _builder(mass: float, weights: CostWeights, friction: float = 0.8) -> StageBuilder:
     box = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), mass, friction)
     return StageBuilder(
         KIN,
-        box,
+        (box,),
         contact_frames(),
         weights,
         ContactCfg(floor_friction=friction),
@@ -43,7 +46,7 @@ def _point(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     z, z1 = 0.1 * rng.normal(size=WIDTH), 0.1 * rng.normal(size=WIDTH)
     for x in (z, z1):
         x[VARIABLES["q"]] = g1.standing_q35() + 0.05 * rng.normal(size=35)
-        x[VARIABLES["object_q"]] = [0.6, 0.0, 0.8, 0.05, -0.03, 0.1]
+        x[VARIABLES[OBJECT_Q]] = [0.6, 0.0, 0.8, 0.05, -0.03, 0.1]
         x[VARIABLES["dt"]] = 0.05
     return z, z1, rng.normal(size=N_PARAMS), rng.normal(size=N_PARAMS)
 
@@ -82,9 +85,9 @@ def test_the_object_mass_enters_its_dynamics():
     builder = _builder(2.0, CostWeights())
     f = builder.group(CARRY, CARRY, False, np.array([0])).function
     z, z1, p, p1 = _point(0)
-    z[VARIABLES["object_v"]] = z1[VARIABLES["object_v"]] = 0.0
+    z[VARIABLES[OBJECT_V]] = z1[VARIABLES[OBJECT_V]] = 0.0
     params = builder.parameters
-    heavier = dataclasses.replace(params, values=params.values | {"object.mass": np.array([5.0])})
+    heavier = dataclasses.replace(params, values=params.values | {"object0.mass": np.array([5.0])})
     g_light = np.asarray(f(z, z1, p, p1, params.vector())[0]).ravel()
     g_heavy = np.asarray(f(z, z1, p, p1, heavier.vector())[0]).ravel()
     expected = np.zeros_like(g_light)

@@ -10,10 +10,14 @@ from locoman.scene import g1
 from locoman.to.collision import CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
-from locoman.to.layout import N_PARAMS, PARAMETERS, VARIABLES, WIDTH, ObjectModel
-from locoman.to.problem import ContactCfg, NodeMode, StageBuilder
+from locoman.to.layout import NodeLayout, ObjectModel, object_key
+from locoman.to.problem import ContactCfg, NodeMode, ObjectMode, StageBuilder
+from locoman.to.supports import Surface
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
+LAYOUT = NodeLayout.of(1)
+VARIABLES, PARAMETERS = LAYOUT.variables, LAYOUT.parameters
+WIDTH, N_PARAMS = LAYOUT.width, LAYOUT.n_params
 
 
 def rotation_x(angle: float) -> np.ndarray:
@@ -21,7 +25,13 @@ def rotation_x(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-FIXED_WHILE_AT_REST = ("object_q", "object_v", "support_wrench", "hand_wrench", "hand_slack")
+FIXED_WHILE_AT_REST = (
+    object_key(0, "q"),
+    object_key(0, "v"),
+    object_key(0, "support_wrench"),
+    "hand_wrench",
+    "hand_slack",
+)
 
 
 def test_the_first_touch_stage_has_independent_equalities():
@@ -30,10 +40,10 @@ def test_the_first_touch_stage_has_independent_equalities():
     there as well made the Jacobian rank-deficient (IPOPT regularised every iteration)."""
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     builder = StageBuilder(
-        kin, BOX, contact_frames(), CostWeights(), ContactCfg(), CollisionCfg(self_pairs=[]), ()
+        kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), CollisionCfg(self_pairs=[]), ()
     )
-    at_rest = NodeMode((True, True), (False, False), False, True)
-    touched = NodeMode((True, True), (True, True), True, True)
+    at_rest = NodeMode((True, True), (None, None), (ObjectMode(False, Surface()),))
+    touched = NodeMode((True, True), (0, 0), (ObjectMode(True, Surface()),))
     fn = builder.group(at_rest, touched, False, np.array([0])).function
     rows = int(np.count_nonzero(builder.group(at_rest, touched, False, [0]).upper == 0.0))
 
@@ -41,8 +51,8 @@ def test_the_first_touch_stage_has_independent_equalities():
     q = g1.standing_q35()
     z[VARIABLES["q"]] = q
     z[VARIABLES["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
-    z[VARIABLES["object_q"]] = [0.5, 0.0, 0.4, 0.0, 0.0, 0.0]
-    z[VARIABLES["support_wrench"]][2] = BOX.mass * 9.81
+    z[VARIABLES[object_key(0, "q")]] = [0.5, 0.0, 0.4, 0.0, 0.0, 0.0]
+    z[VARIABLES[object_key(0, "support_wrench")]][2] = BOX.mass * 9.81
     z[VARIABLES["dt"]] = 0.05
     zs, z1s = ca.SX.sym("z", WIDTH), ca.SX.sym("z1", WIDTH)
     p = np.zeros(N_PARAMS)
@@ -62,13 +72,13 @@ def test_a_collision_kind_is_a_penalty_or_a_hard_constraint():
     """Switching ``object_body`` from the penalty (12) to the constraint (11) moves its p
     from the cost's residuals into the stage's inequalities p >= 0, one row per residual."""
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
-    carried = NodeMode((True, True), (True, True), True, False)
+    carried = NodeMode((True, True), (0, 0), (ObjectMode(True, None),))
     shapes = {}
     for treatment in ("off", "penalty", "constraint"):
         cfg = CollisionCfg(
             self_pairs=[], object_body=treatment, hands_environment="off", object_environment="off"
         )
-        builder = StageBuilder(kin, BOX, contact_frames(), CostWeights(), ContactCfg(), cfg, ())
+        builder = StageBuilder(kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), cfg, ())
         group = builder.group(carried, carried, False, np.array([0]))
         inequalities = int(np.count_nonzero(np.isinf(group.upper)))
         shapes[treatment] = (inequalities, int(group.function.size1_out(2)))

@@ -18,25 +18,34 @@ from locoman.to.layout import ObjectModel
 from locoman.to.parameters import GlobalParameters
 from locoman.to.problem import ContactCfg
 from locoman.to.schedule import ScheduleCfg, step_count, subtask_phases
+from locoman.to.supports import Surface
 from locoman.to.trajopt import Keyframe, SolverCfg, TOInputs, TrajectoryOptimizer, node_modes
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
 SOLE = g1.foot_sole_corners()["left_ankle_roll_link"].mean(axis=0)
 
 
-def _squat_inputs() -> TOInputs:
-    start = g1.standing_q35()
-    keyframe = start.copy()
-    keyframe[2] -= 0.12
-    frames = np.array([np.eye(3), np.eye(3)])
+BOX_ON_TABLE = np.array([[2.0, 0.0, 0.7, 0.0, 0.0, 0.0]])
+
+
+def _inputs(keyframes: list[Keyframe]) -> TOInputs:
+    """The G1 at rest, one box on a table 2 m ahead, and the given keyframes."""
     return TOInputs(
-        start,
-        np.array([2.0, 0.0, 0.7, 0.0, 0.0, 0.0]),
-        BOX,
-        [Keyframe("walk", keyframe, np.array([2.0, 0.0, 0.7, 0.0, 0.0, 0.0]))],
-        np.zeros((2, 3)),
-        frames,
+        g1.standing_q35(),
+        (BOX,),
+        BOX_ON_TABLE,
+        (Surface(),),
+        np.array([0.7]),
+        keyframes,
+        np.zeros((1, 2, 3)),
+        np.tile(np.eye(3), (1, 2, 1, 1)),
     )
+
+
+def _squat_inputs() -> TOInputs:
+    keyframe = g1.standing_q35()
+    keyframe[2] -= 0.12
+    return _inputs([Keyframe("walk", keyframe, None, BOX_ON_TABLE)])
 
 
 def _optimizer(tmp_path_factory, **solver) -> TrajectoryOptimizer:
@@ -49,9 +58,7 @@ def _optimizer(tmp_path_factory, **solver) -> TrajectoryOptimizer:
 
 
 def _as_arrays(traj) -> dict[str, np.ndarray]:
-    out = {f.name: getattr(traj, f.name) for f in dataclasses.fields(traj)}
-    out |= {"prehensile": False, "mu": np.array([0.8, 0.8, 0.8])}
-    return out
+    return {f.name: getattr(traj, f.name) for f in dataclasses.fields(traj)}
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +76,7 @@ def test_the_squat_converges_towards_the_keyframe_height(squat):
 
 def test_dynamics_hold_by_pinocchio_and_the_feet_do_not_slip(squat):
     arrays = _as_arrays(squat)
-    assert dynamics_residuals(arrays, BOX, SOLE).max <= 1e-6
+    assert dynamics_residuals(arrays, [BOX], SOLE).max <= 1e-6
     assert stance_slip(arrays, SOLE) <= 1e-6
     assert squat.foot_wrench[:-1, :, 2].sum(axis=1).min() > 0.0
 
@@ -88,7 +95,7 @@ def test_new_weights_re_solve_the_same_built_problem(tmp_path_factory, squat):
     optimizer = _optimizer(tmp_path_factory, max_iterations=200)
     nlp = optimizer.nlp
     lower = dataclasses.replace(CostWeights(), base_height_m=0.6, base_height=1e4)
-    params = GlobalParameters.of(lower, ContactCfg(), CollisionCfg(), BOX, ())
+    params = GlobalParameters.of(lower, ContactCfg(), CollisionCfg(), (BOX,), ())
     deeper = optimizer.solve(parameters=params)
     assert optimizer.nlp is nlp
     assert deeper.success, deeper.status
@@ -129,8 +136,8 @@ def test_pick_and_place_phases_hold_the_object_from_grasp_to_set():
     ]
     assert all(all(p.hands) for p in place)
     assert [p.object_supported for p in place][-1] and not place[0].object_supported
-    with pytest.raises(ConfigError, match="push"):
-        subtask_phases("push", 0, 0, True, cfg)
+    with pytest.raises(ConfigError, match="step"):
+        subtask_phases("step", 0, 0, True, cfg)
 
 
 def test_the_object_is_simulated_from_the_first_touch():
@@ -138,11 +145,12 @@ def test_the_object_is_simulated_from_the_first_touch():
 
     cfg = ScheduleCfg()
     schedule = Schedule.from_phases(subtask_phases("pick", 0, 0, True, cfg))
-    modes = node_modes(schedule)
+    inputs = _inputs([Keyframe("pick", g1.standing_q35(), 0, BOX_ON_TABLE)])
+    modes = node_modes(inputs, schedule)
     touch = 1 + cfg.reach_nodes
-    assert not any(m.object_active for m in modes[:touch])
-    assert all(m.object_active for m in modes[touch:])
-    assert modes[-1].carried and not modes[touch].carried
+    assert not any(m.objects[0].active for m in modes[:touch])
+    assert all(m.objects[0].active for m in modes[touch:])
+    assert modes[-1].carried(0) and not modes[touch].carried(0)
 
 
 def test_cone_violation_is_zero_inside_and_the_excess_outside():

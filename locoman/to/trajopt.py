@@ -352,9 +352,8 @@ def node_parameters(
     for k, row in enumerate(_supports(inputs, schedule)):
         for j, (_, height) in enumerate(row):
             P[opar(j, "support_z"), k] = height
-    touched = [kf.object for kf in inputs.keyframes]
     modes = node_modes(inputs, schedule)
-    first = next((j for m in modes for j in m.hands if j is not None), touched[0])
+    first = next((j for m in modes for j in m.hands if j is not None), 0)
     points, frames = par["hand_points"].start, par["hand_frames"].start
     for k, mode in enumerate(modes):
         for i, j in enumerate(mode.hands):
