@@ -317,8 +317,9 @@ def node_parameters(
     """(n_params, N): references and switches per node.
 
     The yaw reference goes linearly, over each subtask's nodes, from the previous keyframe's
-    yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes of each
-    subtask after its last step; ``keyframe_costs`` = (base, foot) switches them. A
+    yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes around
+    it (after the subtask's last step before it, before its next); ``keyframe_costs`` =
+    (base, foot) switches them. A
     subtask's goal holds its object at the subtask's last node. The hands' contacts are
     those on the object they touch, elsewhere on the first object a hand touches.
     """
@@ -340,10 +341,12 @@ def node_parameters(
             P[par["kf_base_on"], node] = 1.0
             P[par["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
         if keyframe_costs[1]:
-            last_swing = max(
-                (k for k in nodes if not schedule.phase(k).stance), default=nodes[0] - 1
-            )
-            stance = [k for k in nodes if k > last_swing and schedule.phase(k).stance]
+            # The stance around the keyframe: after the last step before it, up to the next
+            # step (a push walks on after its keyframe).
+            swings = [k for k in nodes if not schedule.phase(k).stance]
+            after = max((k for k in swings if k < node), default=nodes[0] - 1)
+            until = min((k for k in swings if k > node), default=nodes[-1] + 1)
+            stance = [k for k in nodes if after < k < until]
             P[par["kf_foot_on"], stance] = 1.0
             P[par["kf_foot"], stance] = sole_points(kf.q35)[:, :2].mean(axis=0)[:, None]
         if kf.goal is not None:
@@ -467,6 +470,19 @@ def bounds(
 SQUEEZE_MARGIN = 2.0
 
 
+def push_shift(inputs: TOInputs, schedule: Schedule, k: int) -> np.ndarray:
+    """(3,) [m] how far the warm start moves node k of a ``push`` after its keyframe: the
+    fraction of the subtask's nodes after the keyframe times the way to the goal (xy)."""
+    subtask = schedule.subtask_of(k)
+    kf = inputs.keyframes[subtask]
+    node = schedule.keyframe_nodes()[subtask]
+    if kf.predicate != "push" or kf.goal is None or k <= node:
+        return np.zeros(3)
+    last = max(m for m in range(schedule.nodes) if schedule.subtask_of(m) == subtask)
+    way = kf.goal[:2] - kf.object_poses[kf.object][:2]
+    return np.r_[(k - node) / (last - node) * way, 0.0]
+
+
 def _carried_load(inputs: TOInputs, mode: NodeMode, j: int) -> float:
     """[kg] object j's mass and what rests on it, transitively."""
     return inputs.objects[j].mass + sum(_carried_load(inputs, mode, r) for r in mode.riders(j))
@@ -479,7 +495,8 @@ def initial_guess(
     keyframe (robot and objects), at rest, the weight shared by the feet in contact, each
     supported object's load by its support, and a carried object's weight by the hands,
     which squeeze it hard enough for their friction cones (3a) to hold it,
-    :data:`SQUEEZE_MARGIN` times over."""
+    :data:`SQUEEZE_MARGIN` times over. After a ``push`` keyframe the robot, the pushed object
+    and what rides on it move towards the goal, evenly over the nodes (:func:`push_shift`)."""
     layout = inputs.layout
     var, ovar = layout.variables, layout.object_variables
     n = schedule.nodes
@@ -489,11 +506,16 @@ def initial_guess(
         mode = modes[k]
         kf = inputs.keyframes[schedule.subtask_of(k)]
         use_kf = cfg.warm_start and k > 0
+        shift = push_shift(inputs, schedule, k) if use_kf else np.zeros(3)
         X[var["q"], k] = kf.q35 if use_kf else inputs.q_start
+        X[var["q"].start : var["q"].start + 3, k] += shift
         weight = robot_mass * GRAVITY
+        pushed = [kf.object, *mode.riders(kf.object)] if kf.object is not None else []
         for j, obj in enumerate(inputs.objects):
             active = use_kf and mode.objects[j].active
             X[ovar(j, "q"), k] = kf.object_poses[j] if active else inputs.object_starts[j]
+            if active and j in pushed:
+                X[ovar(j, "q").start : ovar(j, "q").start + 3, k] += shift
             if mode.carried(j):
                 weight += obj.mass * GRAVITY
                 R_object = rpy_to_matrix(X[ovar(j, "q"), k][3:6])
