@@ -74,6 +74,7 @@ def test_an_object_in_mid_air_or_inside_a_table_rests_on_nothing(objects, where)
 def test_at_rest_needs_a_support_upright_and_still(objects):
     q = np.r_[0.6, 0.0, 0.72, 0.0, 0.0, 0.0]
     still = np.zeros(6)
+
     def at_rest(q, v):
         return object_at_rest(objects, "box", _box_at(q), q, v, 0.01, 0.01, 0.1)
 

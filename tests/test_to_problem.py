@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import casadi as ca
 import numpy as np
+import pytest
 
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
@@ -86,3 +89,53 @@ def test_a_collision_kind_is_a_penalty_or_a_hard_constraint():
     assert shapes["off"][1] == 0
     assert shapes["penalty"] == (shapes["off"][0], body_spheres)
     assert shapes["constraint"] == (shapes["off"][0] + body_spheres, 0)
+
+
+def test_an_object_resting_on_another_hands_it_its_weight():
+    """Newton's third law (6) between two objects in the stage functions: a 5 kg box at
+    rest on a 12 kg trolley at rest; the box's support carries 5 kg, the trolley's ground
+    contact both (its centre of pressure under their joint CoM), and both bodies' (1) rows
+    vanish. Had the trolley not received the box's
+    wrench, its vertical momentum row would miss the box's weight impulse."""
+    from locoman.to.supports import Chassis, OnObject
+
+    box = ObjectModel.box("box", np.array([0.3, 0.3, 0.2]), 5.0, 0.8)
+    trolley = dataclasses.replace(
+        ObjectModel.box("trolley", np.array([0.8, 0.5, 0.55]), 12.0, 0.5),
+        half_extents=np.array([0.35, 0.2]),
+        solid=False,
+        rear_axle_x=-0.35,
+    )
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    cfg = CollisionCfg(self_pairs=[])
+    builder = StageBuilder(
+        kin, (box, trolley), contact_frames(), CostWeights(), ContactCfg(), cfg, ()
+    )
+    layout = NodeLayout.of(2)
+    mode = NodeMode(
+        (True, True), (None, None), (ObjectMode(True, OnObject(1)), ObjectMode(True, Chassis()))
+    )
+    fn = builder.group(mode, mode, False, np.array([0])).function
+    z = np.zeros(layout.width)
+    q = g1.standing_q35()
+    z[layout.variables["q"]] = q
+    z[layout.variables["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
+    z[layout.variables["dt"]] = 0.05
+    z[layout.object_variables(0, "q")] = [0.3, -1.1, 0.55, 0.0, 0.0, 0.0]
+    z[layout.object_variables(1, "q")] = [0.2, -1.1, 0.0, 0.0, 0.0, 0.0]
+    z[layout.object_variables(0, "support_wrench")][2] = 5.0 * 9.81
+    # The box presses 0.1 m ahead of the trolley's chassis frame: its CoP moves forward.
+    z[layout.object_variables(1, "support_wrench")][[2, 4]] = [17.0 * 9.81, -0.1 * 5.0 * 9.81]
+    p = np.zeros(layout.n_params)
+    p[layout.object_parameters(0, "support_z")] = 0.55
+    theta = builder.parameters.vector()
+
+    def object_rows(z_k):
+        g = np.asarray(fn(z_k, z_k, p, p, theta)[0]).ravel()
+        return g[6 + 35 : 6 + 35 + 24]  # after the robot's (1a), (1b): box, then trolley
+
+    np.testing.assert_allclose(object_rows(z), 0.0, atol=1e-9)
+    forgotten = z.copy()
+    forgotten[layout.object_variables(1, "support_wrench")][2] = 12.0 * 9.81
+    rows = object_rows(forgotten)
+    assert rows[12 + 2] == pytest.approx(5.0 * 9.81 * 0.05)  # h1 - h0 - (net force) dt

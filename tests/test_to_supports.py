@@ -184,7 +184,9 @@ def test_a_trolley_pushed_sideways_at_its_front_turns_about_its_rear_axle():
     for k in range(1, len(q)):
         assert abs(R[k][:, 1] @ (rear[k] - rear[k - 1])) < 1e-9  # (7a) over the step
     # The rate form at the nodes (what the evaluation measures) holds to O(omega^2 dt).
-    omega = [euler_rates_to_world(ca.DM(qk[3:6])).full() @ vk[3:6] for qk, vk in zip(q, v)]
+    omega = [
+        euler_rates_to_world(ca.DM(qk[3:6])).full() @ vk[3:6] for qk, vk in zip(q, v, strict=True)
+    ]
     lateral = [
         abs(Rk[:, 1] @ (vk[:3] + np.cross(wk, -0.35 * Rk[:, 0])))
         for Rk, vk, wk in zip(R, v, omega, strict=True)
