@@ -18,7 +18,7 @@ from locoman.to.layout import ObjectModel
 from locoman.to.parameters import GlobalParameters
 from locoman.to.problem import ContactCfg
 from locoman.to.schedule import ScheduleCfg, step_count, subtask_phases
-from locoman.to.supports import Surface
+from locoman.to.supports import Chassis, OnObject, Surface
 from locoman.to.trajopt import Keyframe, SolverCfg, TOInputs, TrajectoryOptimizer, node_modes
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
@@ -151,6 +151,37 @@ def test_the_object_is_simulated_from_the_first_touch():
     assert not any(m.objects[0].active for m in modes[:touch])
     assert all(m.objects[0].active for m in modes[touch:])
     assert modes[-1].carried(0) and not modes[touch].carried(0)
+
+
+def test_a_picked_object_stays_simulated_when_set_on_one_that_joins_later():
+    """S2's box: simulated from its pick on; the trolley it is set on (touched by no hand
+    yet) joins the simulation when the box lands on it, not the other way round."""
+    from locoman.to.schedule import Schedule
+
+    cfg = ScheduleCfg()
+    trolley = ObjectModel.box("trolley", np.array([0.8, 0.5, 0.55]), 12.0, 0.5)
+    poses = np.array([[2.0, 0.0, 0.7, 0.0, 0.0, 0.0], [2.0, -1.0, 0.0, 0.0, 0.0, 0.0]])
+    stand = g1.standing_q35()
+    keyframes = [
+        Keyframe("pick", stand, 0, poses),
+        Keyframe("place", stand, 0, poses, np.array([2.0, -1.0, 0.0]), OnObject(1), 0.55),
+    ]
+    inputs = TOInputs(
+        stand,
+        (BOX, trolley),
+        poses,
+        (Surface(), Chassis()),
+        np.array([0.7, 0.0]),
+        keyframes,
+        np.zeros((2, 2, 3)),
+        np.tile(np.eye(3), (2, 2, 1, 1)),
+    )
+    phases = subtask_phases("pick", 0, 0, True, cfg) + subtask_phases("place", 1, 2, True, cfg)
+    modes = node_modes(inputs, Schedule.from_phases(phases))
+    touch, landed = 1 + cfg.reach_nodes, len(modes) - cfg.set_nodes
+    assert [m.objects[0].active for m in modes] == [k >= touch for k in range(len(modes))]
+    assert [m.objects[1].active for m in modes] == [k >= landed for k in range(len(modes))]
+    assert modes[landed].objects[0].support == OnObject(1)
 
 
 def test_cone_violation_is_zero_inside_and_the_excess_outside():

@@ -289,8 +289,10 @@ def _active_from(inputs: TOInputs, schedule: Schedule, supports) -> list[int]:
                 if not isinstance(support, OnObject):
                     continue
                 b = support.base
-                if min(first[j], first[b]) <= k and max(first[j], first[b]) > k:
-                    first[j] = first[b] = k
+                if min(first[j], first[b]) <= k < max(first[j], first[b]):
+                    # The later of the two joins the simulation here; the earlier keeps
+                    # its start (the box stays simulated from its pick on).
+                    first[j if first[j] > k else b] = k
                     changed = True
     return first
 
