@@ -111,6 +111,19 @@ def test_a_warm_start_from_the_optimum_converges_in_a_few_iterations(tmp_path_fa
     assert warm.cost == pytest.approx(cold.cost, rel=1e-6)
 
 
+def test_an_unconverged_gauss_newton_solve_goes_on_with_the_exact_hessian(tmp_path_factory, squat):
+    """Stopped after 3 Gauss-Newton iterations, the squat goes on from that point with the
+    exact Hessian, within the same iteration budget, to the same optimum."""
+    optimizer = _optimizer(tmp_path_factory, max_iterations=200, exact_after_iterations=3)
+    traj = optimizer.solve()
+    assert traj.success, traj.status
+    assert 0 < traj.exact_iterations == traj.iterations - 3
+    assert traj.cost == pytest.approx(squat.cost, rel=1e-4)
+    assert squat.exact_iterations == 0
+    capped = _optimizer(tmp_path_factory, max_iterations=5, exact_after_iterations=3).solve()
+    assert not capped.success and capped.iterations == 5 and capped.exact_iterations == 2
+
+
 def test_step_count_is_even_and_bounded_by_length_and_turn():
     cfg = ScheduleCfg(step_length_m=0.25, step_yaw_rad=0.45, step_min_m=0.15)
     feet = np.array([[0.0, 0.1], [0.0, -0.1]])

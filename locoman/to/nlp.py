@@ -287,9 +287,11 @@ class StageNLP:
         params: np.ndarray,
         theta: np.ndarray,
         warm: WarmStart | None = None,
+        limits: dict | None = None,
     ) -> NLPResult:
         """Solve from ``x0``, or from ``warm``'s primal-dual point (IPOPT's warm start);
-        ``params`` is (n_params, N), ``theta`` (n_theta,). A failed solve is returned with
+        ``params`` is (n_params, N), ``theta`` (n_theta,); ``limits``: IPOPT options for
+        this solve only (``max_iter``, ``max_wall_time``). A failed solve is returned with
         IPOPT's status, not raised."""
         if theta.shape != (self.n_theta,):
             raise SolverBuildError(
@@ -306,6 +308,9 @@ class StageNLP:
             solver = self._warm_solver
             x_start = np.clip(warm.x, lbx, ubx)
             args |= {"x0": x_start, "lam_x0": warm.lam_x, "lam_g0": warm.lam_g}
+        if limits:
+            options = self._options | (WARM_START_OPTIONS if warm is not None else {})
+            solver = self.ipopt(options | limits)
         tic = time.perf_counter()
         with _heap_kept():
             out = solver(**args)

@@ -295,6 +295,7 @@ def write_solution(
             "status": traj.status,
             "success": traj.success,
             "iterations": traj.iterations,
+            "exact_hessian_iterations": traj.exact_iterations,
             "solve_time_s": traj.solve_time_s,
             "build_time_s": traj.build_time_s,
             "n_variables": traj.n_variables,
