@@ -1,12 +1,15 @@
-"""The TO's solver settings side by side on ``tiny``, as the node count grows.
+"""The TO's solver settings side by side on a scenario, as the node count grows.
 
-Usage: python benchmarks/to_solvers.py [--scales 1 2 4] [--repeats 3]
+Usage: python benchmarks/to_solvers.py [--scenario tiny] [--scales 1 2 4] [--repeats 3]
        [--configs ipopt_mumps:gauss_newton ipopt_mumps:exact] [--spral-iterations 20]
        [--out benchmarks/results/to_solvers.json]
 
+S2's solve time: ``--scenario s2_trolley --scales 1 --configs ipopt_mumps:gauss_newton
+--spral-iterations 0 --out benchmarks/results/to_solvers_s2_trolley.json``.
+
 Each scale multiplies every phase's node count of ``solve.schedule`` (params.yaml); the
-scene, contacts and keyframes are the current ``data/tiny`` artifacts (``dvc repro
-retarget@tiny`` first). The compiled derivatives do not depend on the node count, so only a
+scene, contacts and keyframes are the current ``data/<scenario>`` artifacts (``dvc repro
+retarget@<scenario>`` first). The compiled derivatives do not depend on the node count, so only a
 fresh cache compiles, once. For every backend and scale: the median of ``--repeats`` runs of
 the solve time, the iterations, the time per iteration, the final cost, and whether the
 evaluation's checks (``evaluate`` stage: dynamics, friction, slip, penetration, goal) pass.
@@ -35,8 +38,6 @@ from locoman.sim.pipeline import evaluate_scenario
 from locoman.to.pipeline import build_optimizer, load_inputs, write_solution
 from locoman.to.trajopt import BACKENDS
 
-ROOT = Path("data/tiny")
-
 
 def _scaled(schedule, scale: float):
     counts = {
@@ -47,15 +48,16 @@ def _scaled(schedule, scale: float):
     return dataclasses.replace(schedule, **counts)
 
 
-def _run(optimizer, inputs, cfg, evaluate_cfg) -> dict:
+def _run(optimizer, inputs, cfg, evaluate_cfg, root: Path) -> dict:
     traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
     with tempfile.TemporaryDirectory() as tmp:
         solve_dir, eval_dir = Path(tmp) / "solve", Path(tmp) / "evaluate"
-        write_solution(solve_dir, traj, inputs, optimizer, cfg, ROOT / "scene")
-        metrics = evaluate_scenario(ROOT / "scene", solve_dir, eval_dir, evaluate_cfg)
+        write_solution(solve_dir, traj, inputs, optimizer, cfg, root / "scene")
+        metrics = evaluate_scenario(root / "scene", solve_dir, eval_dir, evaluate_cfg)
     return {
         "status": traj.status,
         "iterations": traj.iterations,
+        "exact_hessian_iterations": traj.exact_iterations,
         "solve_time_s": traj.solve_time_s,
         "cost": traj.cost,
         "evaluation_success": metrics["success"],
@@ -75,6 +77,7 @@ def _growth(rows: list[dict]) -> float | None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", default="tiny")
     parser.add_argument("--scales", type=float, nargs="+", default=[1.0, 2.0, 4.0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument(
@@ -85,7 +88,8 @@ def main() -> None:
     args = parser.parse_args()
     params = load_params()
     cfg = params.solve
-    inputs = load_inputs(ROOT / "scene", ROOT / "contacts", ROOT / "retarget")
+    root = Path("data") / args.scenario
+    inputs = load_inputs(root / "scene", root / "contacts", root / "retarget")
     rows = []
     for config in args.configs:
         backend, hessian = config.split(":")
@@ -95,7 +99,9 @@ def main() -> None:
         for scale in args.scales:
             run_cfg = dataclasses.replace(cfg, solver=solver, schedule=_scaled(cfg.schedule, scale))
             optimizer = build_optimizer(inputs, run_cfg)
-            runs = [_run(optimizer, inputs, run_cfg, params.evaluate) for _ in range(args.repeats)]
+            runs = [
+                _run(optimizer, inputs, run_cfg, params.evaluate, root) for _ in range(args.repeats)
+            ]
             times = [r["solve_time_s"] for r in runs]
             row = {
                 "config": config,
@@ -105,7 +111,7 @@ def main() -> None:
                 "nodes": optimizer.schedule.nodes,
                 "n_variables": optimizer.nlp.n_x,
                 "n_constraints": optimizer.nlp.n_g,
-                "build_time_s": optimizer.nlp.build_time_s,
+                "build_time_s": optimizer.build_time_s,
                 "runs": runs,
                 "solve_time_median_s": statistics.median(times),
                 "iterations_median": statistics.median(r["iterations"] for r in runs),
@@ -124,7 +130,7 @@ def main() -> None:
             rows.append(row)
     growth = {c: _growth([r for r in rows if r["config"] == c]) for c in args.configs}
     out = {
-        "scenario": "tiny",
+        "scenario": args.scenario,
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
         "repeats": args.repeats,
         "growth_exponent": growth,
