@@ -139,3 +139,75 @@ def test_an_object_resting_on_another_hands_it_its_weight():
     forgotten[layout.object_variables(1, "support_wrench")][2] = 12.0 * 9.81
     rows = object_rows(forgotten)
     assert rows[12 + 2] == pytest.approx(5.0 * 9.81 * 0.05)  # h1 - h0 - (net force) dt
+
+
+def _trolley_spec() -> dict:
+    """A trolley as ``objects.json`` describes it (the scene's trolley, 0.8 x 0.5 x 0.55 m)."""
+    wheels = [
+        {"name": f"wheel_{i}", "pos": [x, y, 0.05], "shape": "sphere", "size": [0.05]}
+        for i, (x, y) in enumerate([(0.35, 0.2), (0.35, -0.2), (-0.35, 0.2), (-0.35, -0.2)])
+    ]
+    frame = [
+        {
+            "name": "post_left",
+            "pos": [-0.385, 0.235, 0.75],
+            "shape": "box",
+            "size": [0.015] * 2 + [0.2],
+        },
+        {
+            "name": "handle",
+            "pos": [-0.385, 0.0, 0.95],
+            "shape": "box",
+            "size": [0.015, 0.25, 0.015],
+        },
+    ]
+    platform = {
+        "name": "platform",
+        "pos": [0.0, 0.0, 0.54],
+        "shape": "box",
+        "size": [0.4, 0.25, 0.01],
+    }
+    return {
+        "kind": "trolley",
+        "size_m": [0.8, 0.5, 0.55],
+        "mass_kg": 12.0,
+        "friction": 0.5,
+        "primitives": [platform, *wheels, *frame],
+    }
+
+
+def test_the_robot_keeps_out_of_a_trolleys_chassis_and_handle_frame():
+    """A trolley is not solid as a whole (the hands reach its platform and handle), but its
+    chassis (up to the platform's top) and its handle frame are: the G1's body points pay
+    (12) inside either, and nothing 1 m behind the handle."""
+    trolley = ObjectModel.from_spec("trolley", _trolley_spec())
+    (chassis_c, chassis_h), (frame_c, frame_h) = trolley.parts
+    assert np.allclose(chassis_c, [0.0, 0.0, 0.275]) and np.allclose(chassis_h, [0.4, 0.25, 0.275])
+    assert frame_c[0] == pytest.approx(-0.385) and frame_c[2] - frame_h[2] == pytest.approx(0.55)
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    cfg = CollisionCfg(self_pairs=[], hands_environment="off", object_environment="off")
+    builder = StageBuilder(kin, (trolley,), contact_frames(), CostWeights(), ContactCfg(), cfg, ())
+    mode = NodeMode((True, True), (None, None), (ObjectMode(True, None),))
+    z = ca.SX.sym("z", WIDTH)
+    residuals = ca.Function(
+        "r",
+        [z, builder.theta],
+        [
+            builder.collision_terms(z, mode).residuals(
+                builder.collision.softness, builder.w.collision
+            )
+        ],
+    )
+
+    def penalty(robot_x: float) -> float:
+        q = g1.standing_q35()
+        q[0] = robot_x
+        zn = np.zeros(WIDTH)
+        zn[VARIABLES["q"]] = q
+        zn[VARIABLES["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
+        zn[VARIABLES[object_key(0, "q")]] = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        return float(ca.sumsqr(residuals(zn, builder.parameters.vector())))
+
+    assert penalty(-1.4) < 1e-3
+    assert penalty(0.0) > 1e3  # standing in the chassis
+    assert penalty(-0.45) > 1.0  # the torso in the handle frame

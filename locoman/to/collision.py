@@ -65,7 +65,7 @@ class CollisionCfg:
         self_pairs: Link pairs of the G1 kept apart between their spheres.
         self_collision: Treatment of ``self_pairs``.
         object_body: Between the robot's body points, and each palm while it does not touch
-            the object, and the object.
+            the object, and the object (its box; a trolley's chassis and handle frame).
         hands_environment: Between the palms and every fixed object's bounding box.
         object_environment: Between the corners of the object, while no support holds it,
             and every fixed object's bounding box, and between the obstacles' vertical edges

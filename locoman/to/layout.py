@@ -151,6 +151,10 @@ class ObjectModel:
         prehensile: The hands grasp it (a handle): their contacts drop (3) (Sec. IV-A.2).
         rear_axle_x: A wheeled chassis (Sec. IV-A.3): x of its fixed-direction (rear)
             wheels' axle in its frame [m]; None for an object that rests on a face.
+        parts: The collision boxes of an object that is not solid as a whole, each
+            (centre (3,), half sizes (3,)) in its frame [m]: a trolley's chassis (platform,
+            struts and wheels) and its handle frame, which the robot's body must keep out
+            of while it walks round and pushes.
     """
 
     name: str
@@ -162,6 +166,7 @@ class ObjectModel:
     solid: bool = True
     prehensile: bool = False
     rear_axle_x: float | None = None
+    parts: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
 
     @property
     def wheeled(self) -> bool:
@@ -176,14 +181,15 @@ class ObjectModel:
         model = cls.box(name, size, spec["mass_kg"], spec["friction"])
         if spec["kind"] != "trolley":
             return model
-        parts = spec["primitives"]
-        wheels = np.array([p["pos"][:2] for p in parts if p["name"].startswith("wheel")])
+        primitives = spec["primitives"]
+        wheels = np.array([p["pos"][:2] for p in primitives if p["name"].startswith("wheel")])
         return dataclasses.replace(
             model,
             half_extents=np.abs(wheels).max(axis=0),
             solid=False,
             prehensile=True,
             rear_axle_x=float(wheels[wheels[:, 0] < 0.0, 0].mean()),
+            parts=_chassis_and_frame(primitives),
         )
 
     @classmethod
@@ -193,3 +199,25 @@ class ObjectModel:
         inertia = mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
         com = np.array([0.0, 0.0, c / 2])
         return cls(name, mass, inertia, com, np.array([a, b]) / 2, friction)
+
+
+def _chassis_and_frame(primitives: list[dict]) -> tuple:
+    """A trolley's two collision boxes (centre, half sizes) in its frame [m]: the bounding
+    box of what lies up to the platform's top (platform, struts, wheels), and that of what
+    rises above it (the handle's posts and bar)."""
+    low = np.array([np.asarray(p["pos"]) - _half_sizes(p) for p in primitives])
+    high = np.array([np.asarray(p["pos"]) + _half_sizes(p) for p in primitives])
+    top = next(high[i, 2] for i, p in enumerate(primitives) if p["name"] == "platform")
+    chassis = high[:, 2] <= top + 1e-9
+    boxes = []
+    for rows in (chassis, ~chassis):
+        if rows.any():
+            lo, hi = low[rows].min(axis=0), high[rows].max(axis=0)
+            boxes.append((tuple((0.5 * (lo + hi)).tolist()), tuple((0.5 * (hi - lo)).tolist())))
+    return tuple(boxes)
+
+
+def _half_sizes(primitive: dict) -> np.ndarray:
+    """(3,) half sizes of a box or sphere primitive of ``objects.json`` [m]."""
+    size = np.asarray(primitive["size"], dtype=float)
+    return np.repeat(size, 3) if primitive["shape"] == "sphere" else size

@@ -42,6 +42,7 @@ from locoman.to.collision import (
     Obstacle,
     box_corners,
     edge_point_count,
+    link_spheres,
     self_collision_penetrations,
     sphere_box_penetration,
     vertical_edge_points,
@@ -62,6 +63,8 @@ from locoman.to.layout import BODY_POINTS, FEET, HANDS, KINEMATICS, NodeLayout, 
 from locoman.to.nlp import StageGroup
 from locoman.to.parameters import GlobalParameters, SymbolicGlobals
 from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
+
+FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -313,6 +316,18 @@ class StageBuilder:
         ends = [r + sign * self.palm_half_length * R[:, 0] for sign in (-1.0, 1.0)]
         return [(point, self.palm_radius) for point in (r, *ends)]
 
+    def _forearm(self, z: ca.SX, i: int) -> list[tuple[ca.SX, float]]:
+        """(centre [m], radius [m]) of the spheres of the forearm's (wrist roll link's)
+        collision capsules, from q."""
+        link = FOREARM_LINKS[i]
+        R, p = self.kin.frame_pose(link)
+        spheres = link_spheres(link)
+        of_q = ca.Function(
+            f"{link}_spheres", [self.kin.q], [p + R @ ca.DM(s.centre) for s in spheres]
+        )
+        centres = of_q.call([self._var(z, "q")])
+        return [(c, s.radius) for c, s in zip(centres, spheres, strict=True)]
+
     def _object_frame(self, z: ca.SX, j: int) -> BodyFrame:
         qo, vo = self._ovar(z, j, "q"), self._ovar(z, j, "v")
         R = rpy_matrix(qo[3:6])
@@ -513,6 +528,15 @@ class StageBuilder:
         frame, obj = self._object_frame(z, j), self.objects[j]
         return frame.p + frame.R @ obj.com, frame.R, ca.vertcat(obj.half_extents, obj.com[2])
 
+    def _object_parts(self, z: ca.SX, j: int) -> list[tuple[ca.SX, ca.SX, ca.DM]]:
+        """Centre [m], rotation and half sizes [m] of each collision box of an object that
+        is not solid as a whole (:attr:`ObjectModel.parts`)."""
+        frame = self._object_frame(z, j)
+        return [
+            (frame.p + frame.R @ ca.DM(centre), frame.R, ca.DM(half))
+            for centre, half in self.objects[j].parts
+        ]
+
     def _object_environment(self, z: ca.SX, j: int) -> list[ca.SX]:
         """p (11) of each corner of object j in each obstacle, and of the obstacles'
         vertical edges in the object."""
@@ -540,13 +564,20 @@ class StageBuilder:
         if cfg.object_body != "off":
             points = self._kin(z, "body_points")
             body = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
-            for j in solid:
-                centre, R_o, half = self._object_box(z, j)
-                spheres = body + [s for i in range(2) if mode.hands[i] != j for s in palms[i]]
-                terms.add(
-                    cfg.object_body,
-                    [sphere_box_penetration(c, r, centre, R_o, half, cfg) for c, r in spheres],
+            for j, obj in enumerate(self.objects):
+                boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j)
+                # A solid box's own corners catch a forearm; a trolley's thin handle bar
+                # passes between the palms and the body points, so its parts check the
+                # forearms too.
+                hands = (
+                    palms if obj.solid else [p + self._forearm(z, i) for i, p in enumerate(palms)]
                 )
+                spheres = body + [s for i in range(2) if mode.hands[i] != j for s in hands[i]]
+                for centre, R_o, half in boxes:
+                    terms.add(
+                        cfg.object_body,
+                        [sphere_box_penetration(c, r, centre, R_o, half, cfg) for c, r in spheres],
+                    )
         if cfg.object_environment != "off":
             for j in solid:
                 if mode.carried(j):
