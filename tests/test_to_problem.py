@@ -28,6 +28,21 @@ def rotation_x(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
+def _left_sole_centre() -> np.ndarray:
+    """World position of the left sole's centre in the standing posture [m]."""
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    builder = StageBuilder(
+        kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), CollisionCfg(self_pairs=[]), ()
+    )
+    values = np.asarray(builder.kinematics(g1.standing_q35(), np.zeros(35))).ravel()
+    from locoman.to.layout import KINEMATICS
+
+    return values[KINEMATICS["left_foot_r"]]
+
+
+SOLE_CENTRE_LEFT = _left_sole_centre()
+
+
 FIXED_WHILE_AT_REST = (
     object_key(0, "q"),
     object_key(0, "v"),
@@ -211,3 +226,39 @@ def test_the_robot_keeps_out_of_a_trolleys_chassis_and_handle_frame():
     assert penalty(-1.4) < 1e-3
     assert penalty(0.0) > 1e3  # standing in the chassis
     assert penalty(-0.45) > 1.0  # the torso in the handle frame
+
+
+def test_a_foot_in_a_fixed_obstacle_pays_the_feet_environment_penalty():
+    """A table leg (a fixed box) 2 cm off the left foot's toe, then over it: only the latter
+    costs (12) under ``feet_environment``; with the kind off, nothing."""
+    from locoman.to.collision import Obstacle
+
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    q = g1.standing_q35()
+    mode = NodeMode((True, True), (None, None), (ObjectMode(False, Surface()),))
+
+    def penalty(leg_x: float, treatment: str = "penalty") -> float:
+        sole = SOLE_CENTRE_LEFT
+        leg = Obstacle(
+            "table/leg", np.array([leg_x, sole[1], 0.35]), 0.0, np.array([0.03, 0.03, 0.35])
+        )
+        cfg = CollisionCfg(
+            self_pairs=[], object_body="off", hands_environment="off", feet_environment=treatment
+        )
+        builder = StageBuilder(
+            kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), cfg, (leg,)
+        )
+        z = ca.SX.sym("z", WIDTH)
+        r = builder.collision_terms(z, mode).residuals(
+            builder.collision.softness, builder.w.collision
+        )
+        zn = np.zeros(WIDTH)
+        zn[VARIABLES["q"]] = q
+        zn[VARIABLES["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
+        fn = ca.Function("r", [z, builder.theta], [ca.sumsqr(r)])
+        return float(fn(zn, builder.parameters.vector()))
+
+    toe = SOLE_CENTRE_LEFT[0] + 0.09
+    assert penalty(toe + 0.03 + 0.03) < 1e-2
+    assert penalty(SOLE_CENTRE_LEFT[0]) > 10.0
+    assert penalty(SOLE_CENTRE_LEFT[0], "off") == 0.0

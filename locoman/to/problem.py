@@ -65,6 +65,7 @@ from locoman.to.parameters import GlobalParameters, SymbolicGlobals
 from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
 
 FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
+FOOT_SPHERE_M = 0.04  # radius of the heel and toe spheres [m]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -303,6 +304,12 @@ class StageBuilder:
         f = FEET[i]
         kin = self._kin
         return kin(z, f"{f}_r"), kin(z, f"{f}_r_dot"), kin(z, f"{f}_R"), kin(z, f"{f}_w")
+
+    def _foot_spheres(self, z: ca.SX, i: int) -> list[tuple[ca.SX, float]]:
+        """(centre [m], radius [m]) of a heel and a toe sphere, resting on the sole and
+        reaching its ends (the G1's sole is 18 cm long)."""
+        r, _, R, _ = self._foot(z, i)
+        return [(r + R @ ca.DM([x, 0.0, FOOT_SPHERE_M]), FOOT_SPHERE_M) for x in (-0.05, 0.05)]
 
     def _palm(self, z: ca.SX, i: int) -> tuple[ca.SX, ca.SX, ca.SX]:
         """Palm centre [m], contact frame and angular velocity [rad/s]."""
@@ -589,6 +596,16 @@ class StageBuilder:
                     sphere_box_penetration(point, radius, *obstacle.frame(), cfg)
                     for obstacle in self.obstacles
                     for point, radius in palms[0] + palms[1]
+                ],
+            )
+        if cfg.feet_environment != "off":
+            feet = [s for i in range(2) for s in self._foot_spheres(z, i)]
+            terms.add(
+                cfg.feet_environment,
+                [
+                    sphere_box_penetration(point, radius, *obstacle.frame(), cfg)
+                    for obstacle in self.obstacles
+                    for point, radius in feet
                 ],
             )
         return terms
