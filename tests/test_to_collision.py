@@ -18,14 +18,14 @@ from locoman.to.collision import (
     Obstacle,
     box_clearance,
     box_corners,
-    edge_point_count,
+    edge_point_counts,
+    edge_points,
     link_spheres,
     obstacles_from_objects,
     penetration_residual,
     self_collision_penetrations,
     sphere_box_penetration,
     sphere_sphere_penetration,
-    vertical_edge_points,
 )
 from locoman.to.kinematics import SymbolicKinematics
 
@@ -200,17 +200,30 @@ def test_palm_frames_are_square_to_the_hand_capsule():
         assert side * axes[1, 2] > 0.9
 
 
-def test_vertical_edge_points_run_down_every_edge_at_most_the_spacing_apart():
+def test_edge_points_run_along_every_vertical_and_top_edge_at_most_the_spacing_apart():
     table = Obstacle("t", np.array([1.0, 0.0, 0.36]), 0.3, np.array([0.3, 0.4, 0.36]))
-    count = edge_point_count(table.half_extents[2], 0.1)
-    points = np.array([np.asarray(p).ravel() for p in vertical_edge_points(table, count)])
+    counts = edge_point_counts(table.half_extents, 0.1)
+    points = np.array([np.asarray(p).ravel() for p in edge_points(table, counts)])
     local = (points - table.centre) @ table.rotation
-    assert np.allclose(np.abs(local[:, :2]), table.half_extents[:2])
+    # Every point is on an edge: on two of the box's faces.
+    on_face = np.isclose(np.abs(local), table.half_extents)
+    assert np.all(on_face.sum(axis=1) >= 2)
     for x in (-0.3, 0.3):
         for y in (-0.4, 0.4):
             z = np.sort(local[np.isclose(local[:, 0], x) & np.isclose(local[:, 1], y), 2])
             assert z[0] == pytest.approx(-0.36) and z[-1] == pytest.approx(0.36)
             assert np.diff(z).max() <= 0.1 + 1e-12
+    top = np.isclose(local[:, 2], 0.36)
+    for axis, other, half in ((0, 1, 0.4), (1, 0, 0.3)):
+        for side in (-half, half):
+            run = np.sort(local[top & np.isclose(local[:, other], side), axis])
+            assert run[0] == pytest.approx(-table.half_extents[axis])
+            assert run[-1] == pytest.approx(table.half_extents[axis])
+            assert np.diff(run).max() <= 0.1 + 1e-12
+    # No point twice (the top corners belong to the vertical edges), none on the floor
+    # but the vertical edges' ends.
+    assert len(np.unique(np.round(local, 9), axis=0)) == len(local)
+    assert np.sum(np.isclose(local[:, 2], -0.36)) == 4
 
 
 @pytest.mark.parametrize("treatment", ["penalty", "constraint"])

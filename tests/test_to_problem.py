@@ -262,3 +262,41 @@ def test_a_foot_in_a_fixed_obstacle_pays_the_feet_environment_penalty():
     assert penalty(toe + 0.03 + 0.03) < 1e-2
     assert penalty(SOLE_CENTRE_LEFT[0]) > 10.0
     assert penalty(SOLE_CENTRE_LEFT[0], "off") == 0.0
+
+
+def test_a_carried_box_dipped_over_a_tables_rim_pays_the_object_environment_penalty():
+    """A box pitched over a table's rim, its corners all clear of the table (the low ones
+    off its edge, the high ones over its top), while the rim cuts into its bottom face:
+    the rim's points catch it under ``object_environment``; lifted 5 cm, nothing."""
+    from locoman.to.collision import Obstacle
+
+    table = Obstacle("table", np.array([1.0, 0.0, 0.36]), 0.0, np.array([0.3, 0.4, 0.36]))
+    cfg = CollisionCfg(self_pairs=[], object_body="off", hands_environment="off")
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    builder = StageBuilder(
+        kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), cfg, (table,)
+    )
+    carried = NodeMode((True, True), (0, 0), (ObjectMode(True, None),))
+    z = ca.SX.sym("z", WIDTH)
+    r = builder.collision_terms(z, carried).residuals(
+        builder.collision.softness, builder.w.collision
+    )
+    fn = ca.Function("r", [z, builder.theta], [ca.sumsqr(r)])
+    pitch = -0.35  # the +x side (over the table) up
+
+    def penalty(height: float) -> float:
+        zn = np.zeros(WIDTH)
+        zn[VARIABLES["q"]] = g1.standing_q35()
+        zn[VARIABLES[object_key(0, "q")]] = [0.68, 0.0, height, 0.0, pitch, 0.0]
+        return float(fn(zn, builder.parameters.vector()))
+
+    c, s = np.cos(pitch), np.sin(pitch)
+    R = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    half = np.r_[BOX.half_extents, BOX.com[2]]
+    signs = np.array([(x, y, zz) for x in (-1, 1) for y in (-1, 1) for zz in (0, 2)])
+    corners = np.array([0.68, 0.0, 0.695]) + (signs * half) @ R.T
+    over_table = corners[:, 0] > 0.7
+    assert np.all(corners[over_table, 2] > 0.72 + cfg.margin_m)  # clear of the top
+    assert np.all(corners[~over_table, 0] < 0.7 - cfg.margin_m)  # off the edge
+    assert penalty(0.695) > 10.0
+    assert penalty(0.745) < 1e-3

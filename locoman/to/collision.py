@@ -234,24 +234,26 @@ def box_corners(half_extents) -> list[ca.SX | ca.DM]:
     return [ca.DM(signs) * half + lift for signs in _CORNER_SIGNS]
 
 
-def edge_point_count(half_height: float, spacing: float) -> int:
-    """Points per vertical edge of :func:`vertical_edge_points`, at most ``spacing`` apart
-    [m]; a count is structure, so it comes from the numbers."""
-    return int(np.ceil(2.0 * half_height / spacing)) + 1
+def edge_point_counts(half_extents: np.ndarray, spacing: float) -> tuple[int, int, int]:
+    """Points per edge of :func:`edge_points` along an obstacle's x, y and z axes, ends
+    included, at most ``spacing`` apart [m]; a count is structure, so it comes from the
+    numbers."""
+    return tuple(int(np.ceil(2.0 * h / spacing)) + 1 for h in np.asarray(half_extents))
 
 
-def vertical_edge_points(obstacle: Obstacle, count: int) -> list[ca.SX | ca.DM]:
-    """World points (3,) along the four vertical edges of an obstacle, ``count`` per edge
-    from its top corners down (:func:`edge_point_count`): an edge that enters a carried
-    box's side between the box's corners is caught by one of them."""
+def edge_points(obstacle: Obstacle, counts: tuple[int, int, int]) -> list[ca.SX | ca.DM]:
+    """World points (3,) along an obstacle's four vertical edges, from the top corners
+    down, and along its four top edges between those corners (:func:`edge_point_counts`):
+    an edge that enters a carried box between the box's corners is caught by one of them,
+    a table's leg and the rim of its top alike (a box lifted off a table and swung over
+    the rim, its corners outside the top, was not caught by corners alone). The bottom
+    edges lie on the floor, where a carried object does not go."""
     centre, R, half = obstacle.frame()
-    out = []
-    for x in (-1.0, 1.0):
-        for y in (-1.0, 1.0):
-            for i in range(count):
-                height = half[2] * (1.0 - 2.0 * i / (count - 1))
-                out.append(centre + R @ ca.vertcat(x * half[0], y * half[1], height))
-    return out
+    n_x, n_y, n_z = counts
+    signs = [(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in np.linspace(1, -1, n_z)]
+    signs += [(x, y, 1.0) for x in np.linspace(-1, 1, n_x)[1:-1] for y in (-1.0, 1.0)]
+    signs += [(x, y, 1.0) for x in (-1.0, 1.0) for y in np.linspace(-1, 1, n_y)[1:-1]]
+    return [centre + R @ (ca.DM(sign) * half) for sign in signs]
 
 
 @dataclasses.dataclass(frozen=True)

@@ -41,11 +41,11 @@ from locoman.to.collision import (
     CollisionTerms,
     Obstacle,
     box_corners,
-    edge_point_count,
+    edge_point_counts,
+    edge_points,
     link_spheres,
     self_collision_penetrations,
     sphere_box_penetration,
-    vertical_edge_points,
 )
 from locoman.to.contacts import friction_cone_cop, interactive_contact, no_rolling, patch_contact
 from locoman.to.costs import (
@@ -66,6 +66,12 @@ from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
 
 FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
 FOOT_SPHERE_M = 0.04  # radius of the heel and toe spheres [m]
+
+
+def _smallest_half_size(obj: ObjectModel) -> float:
+    """An object box's smallest half size [m]: its patch's half sizes and half its height
+    (its CoM sits at half height)."""
+    return float(min(np.min(obj.half_extents), obj.com[2]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -209,9 +215,10 @@ class StageBuilder:
         self.kin, self.objects = kin, symbols.objects(objects)
         self.w, self.contact = symbols.weights(weights), symbols.contact(contact)
         self.collision, self.obstacles = symbols.collision(collision), symbols.obstacles(obstacles)
-        # Points per vertical edge of each obstacle, spaced by each object's half height.
+        # Points per edge of each obstacle, spaced by each object's smallest half size.
         self.edge_counts = [
-            [edge_point_count(o.half_extents[2], obj.com[2]) for o in obstacles] for obj in objects
+            [edge_point_counts(o.half_extents, _smallest_half_size(obj)) for o in obstacles]
+            for obj in objects
         ]
         self.sole_half = np.asarray(frames.sole_half_extents)
         self.palm_radius = float(frames.palm_radius)
@@ -546,7 +553,7 @@ class StageBuilder:
 
     def _object_environment(self, z: ca.SX, j: int) -> list[ca.SX]:
         """p (11) of each corner of object j in each obstacle, and of the obstacles'
-        vertical edges in the object."""
+        vertical and top edges in the object."""
         centre, R_o, half = self._object_box(z, j)
         bottom = self._object_frame(z, j).p
         corners = [bottom + R_o @ c for c in box_corners(half)]
@@ -556,7 +563,7 @@ class StageBuilder:
             out += [sphere_box_penetration(c, 0.0, middle, R, box, self.collision) for c in corners]
             out += [
                 sphere_box_penetration(point, 0.0, centre, R_o, half, self.collision)
-                for point in vertical_edge_points(obstacle, count)
+                for point in edge_points(obstacle, count)
             ]
         return out
 
