@@ -16,6 +16,7 @@ from locoman.to.collision import (
     CollisionCfg,
     CollisionTerms,
     Obstacle,
+    SphereBox,
     box_clearance,
     box_corners,
     edge_point_counts,
@@ -149,7 +150,7 @@ def test_self_collision_penalises_what_mujoco_finds_in_collision(roll):
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     pairs = CollisionCfg().self_pairs
     terms = CollisionTerms()
-    terms.add("penalty", self_collision_penetrations(kin.frame_pose, pairs, 0.0))
+    terms.add_penetrations("penalty", self_collision_penetrations(kin.frame_pose, pairs, 0.0))
     cost = ca.Function("c", [kin.q], [ca.sumsqr(terms.residuals(0.01, 1.0))])
     standing = g1.standing_q35()
     assert float(cost(standing)) < 1e-4  # (softness ln 2)^2 per pair at most, near contact
@@ -188,6 +189,8 @@ def test_config_check_names_what_is_wrong():
     errors = dict(CollisionCfg(self_pairs=[["pelvis", "nose"]], smoothing_m=0.02).check())
     assert "nose" in errors["self_pairs"]
     assert "ln(3)" in errors["margin_m"]
+    errors = dict(CollisionCfg(knee_collision="homotopy", legs_object="homotopy").check())
+    assert "use constraint" in errors["knee_collision"] and "legs_object" not in errors
 
 
 def test_palm_frames_are_square_to_the_hand_capsule():
@@ -226,52 +229,71 @@ def test_edge_points_run_along_every_vertical_and_top_edge_at_most_the_spacing_a
     assert np.sum(np.isclose(local[:, 2], -0.36)) == 4
 
 
-@pytest.mark.parametrize("treatment", ["penalty", "constraint"])
+@pytest.mark.parametrize("treatment", ["penalty", "constraint", "homotopy"])
 def test_the_hard_constraint_keeps_a_body_out_where_the_penalty_lets_it_in(treatment):
     """A single-body toy: a ball (radius 5 cm) crosses a box-shaped obstacle from one side
     to the other with least acceleration, its path started straight through the box. With
     (11) as a constraint every node keeps the margin (p >= 0); a weak penalty (12) trades
-    penetration for acceleration and lets the ball in."""
+    penetration for acceleration and lets the ball in. The homotopy (13) starts at the
+    box's inscribed ellipsoid (alpha = 1 at every node) and ends at the true box: alpha
+    at zero, p >= 0 to 0.1 mm, and the ball as close to the box as (11) lets it."""
     nodes, radius = 21, 0.05
     centre, R, half = ca.DM.zeros(3), ca.DM.eye(3), ca.DM([0.1, 0.1, 0.1])
     x = ca.SX.sym("x", 3, nodes)
-    terms = CollisionTerms()
-    terms.add(
-        treatment,
-        [sphere_box_penetration(x[:, k], radius, centre, R, half, CFG) for k in range(nodes)],
-    )
+    alpha = ca.SX.sym("alpha", nodes)
+    terms = [CollisionTerms() for _ in range(nodes)]
+    for k in range(nodes):
+        terms[k].add(treatment, [SphereBox(x[:, k], radius, centre, R, half)], CFG)
     acceleration = x[:, 2:] - 2 * x[:, 1:-1] + x[:, :-2]
-    cost = 1e3 * ca.sumsqr(acceleration) + ca.sumsqr(terms.residuals(CFG.softness, 1e-2))
+    w_hom = 2e2
+    residuals = ca.vertcat(
+        *[t.residuals(CFG.softness, 1e-2, alpha[k], w_hom) for k, t in enumerate(terms)]
+    )
+    cost = 1e3 * ca.sumsqr(acceleration) + ca.sumsqr(residuals)
     ends = ca.vertcat(x[:, 0] - [-0.5, 0.0, 0.0], x[:, -1] - [0.5, 0.0, 0.0])
-    g = ca.vertcat(ends, terms.inequalities())
+    g = ca.vertcat(ends, *[t.inequalities(alpha[k]) for k, t in enumerate(terms)])
     solver = ca.nlpsol(
         "toy",
         "ipopt",
-        {"x": ca.vec(x), "f": cost, "g": g},
+        {"x": ca.vertcat(ca.vec(x), alpha), "f": cost, "g": g},
         {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes"}},
     )
     start = np.c_[np.linspace(-0.5, 0.5, nodes), np.full(nodes, 0.01), np.zeros(nodes)].T
+    homotopy = treatment == "homotopy"
     rows = g.numel()
-    out = solver(
-        x0=start.ravel(order="F"),
-        lbg=np.zeros(rows),
-        ubg=np.r_[np.zeros(6), np.full(rows - 6, np.inf)],
-    )
-    assert solver.stats()["success"]
-    path = np.asarray(out["x"]).reshape(3, nodes, order="F")
-    p = np.array(
-        [
-            float(
-                ca.Function(
-                    "p", [x], [sphere_box_penetration(x[:, k], radius, centre, R, half, CFG)]
-                )(path)
-            )
+
+    def solve(alpha_low: float, alpha_high: float) -> tuple[np.ndarray, np.ndarray]:
+        """The path (3, nodes) and each node's p of the true box, alpha within bounds."""
+        out = solver(
+            x0=np.r_[start.ravel(order="F"), np.full(nodes, alpha_high)],
+            lbx=np.r_[np.full(3 * nodes, -np.inf), np.full(nodes, alpha_low)],
+            ubx=np.r_[np.full(3 * nodes, np.inf), np.full(nodes, alpha_high)],
+            lbg=np.zeros(rows),
+            ubg=np.r_[np.zeros(6), np.full(rows - 6, np.inf)],
+        )
+        assert solver.stats()["success"]
+        solution = np.asarray(out["x"]).ravel()
+        path = solution[: 3 * nodes].reshape(3, nodes, order="F")
+        p = [
+            ca.Function("p", [x], [SphereBox(x[:, k], radius, centre, R, half).penetration(CFG)])
             for k in range(nodes)
         ]
-    )
-    if treatment == "constraint":
-        assert p.min() >= -1e-6
-        assert terms.residuals(CFG.softness, 1.0).numel() == 0
-    else:
+        return solution[3 * nodes :], np.array([float(p_k(path)) for p_k in p])
+
+    alpha, p = solve(0.0, 1.0 if homotopy else 0.0)
+    if treatment == "penalty":
         assert p.min() < -0.1  # more than a centimetre inside, with L = 0.1 m
-        assert terms.inequalities().numel() == 0
+        assert terms[0].inequalities().numel() == 0
+    else:
+        # (13) ends near, not at, alpha = 0 (w_hom trades it against the path), so the
+        # true box holds to alpha (p~ - p): here 0.03 mm.
+        assert p.min() >= (-1e-3 if homotopy else -1e-6)
+        assert p.min() < 0.05  # within 5 mm of the margin: the true box shapes the path
+    if treatment == "constraint":
+        assert residuals.numel() == 0
+    if homotopy:
+        assert alpha.max() < 1e-3
+        # The stand-in alone (alpha held at 1), an ellipsoid inscribed in the box, lets the
+        # ball cut the box's edges: it guides, the box decides.
+        _, p_stand_in = solve(1.0, 1.0)
+        assert p_stand_in.min() < -0.05  # 5 mm into the box

@@ -10,7 +10,7 @@ import pytest
 
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
-from locoman.to.collision import CollisionCfg
+from locoman.to.collision import KINDS, CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import NodeLayout, ObjectModel, object_key
@@ -86,24 +86,32 @@ def test_the_first_touch_stage_has_independent_equalities():
     assert singular[-1] > 1e-6 * singular[0]
 
 
-def test_a_collision_kind_is_a_penalty_or_a_hard_constraint():
+def test_a_collision_kind_is_a_penalty_a_hard_constraint_or_a_homotopy():
     """Switching ``object_body`` from the penalty (12) to the constraint (11) moves its p
-    from the cost's residuals into the stage's inequalities p >= 0, one row per residual."""
+    from the cost's residuals into the stage's inequalities p >= 0, one row per residual;
+    ``legs_object`` as the homotopy (13) adds a row (13a) per pair and one residual, the
+    node's alpha of (13b)."""
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     carried = NodeMode((True, True), (0, 0), (ObjectMode(True, None),))
+    only = dict.fromkeys(KINDS, "off")
     shapes = {}
-    for treatment in ("off", "penalty", "constraint"):
-        cfg = CollisionCfg(
-            self_pairs=[], object_body=treatment, hands_environment="off", object_environment="off"
-        )
+    for kind, treatment in (
+        ("object_body", "off"),
+        ("object_body", "penalty"),
+        ("object_body", "constraint"),
+        ("legs_object", "homotopy"),
+    ):
+        cfg = CollisionCfg(self_pairs=[], **(only | {kind: treatment}))
         builder = StageBuilder(kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), cfg, ())
         group = builder.group(carried, carried, False, np.array([0]))
         inequalities = int(np.count_nonzero(np.isinf(group.upper)))
         shapes[treatment] = (inequalities, int(group.function.size1_out(2)))
-    body_spheres = 6  # BODY_POINTS; both palms touch the object
+    trunk_spheres = 2  # pelvis, torso; both palms touch the object
+    leg_spheres = 4  # hips and knees
     assert shapes["off"][1] == 0
-    assert shapes["penalty"] == (shapes["off"][0], body_spheres)
-    assert shapes["constraint"] == (shapes["off"][0] + body_spheres, 0)
+    assert shapes["penalty"] == (shapes["off"][0], trunk_spheres)
+    assert shapes["constraint"] == (shapes["off"][0] + trunk_spheres, 0)
+    assert shapes["homotopy"] == (shapes["off"][0] + leg_spheres, 1)
 
 
 def test_an_object_resting_on_another_hands_it_its_weight():
@@ -242,9 +250,8 @@ def test_a_foot_in_a_fixed_obstacle_pays_the_feet_environment_penalty():
         leg = Obstacle(
             "table/leg", np.array([leg_x, sole[1], 0.35]), 0.0, np.array([0.03, 0.03, 0.35])
         )
-        cfg = CollisionCfg(
-            self_pairs=[], object_body="off", hands_environment="off", feet_environment=treatment
-        )
+        only = dict.fromkeys(KINDS, "off") | {"feet_environment": treatment}
+        cfg = CollisionCfg(self_pairs=[], **only)
         builder = StageBuilder(
             kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), cfg, (leg,)
         )
@@ -271,7 +278,9 @@ def test_a_carried_box_dipped_over_a_tables_rim_pays_the_object_environment_pena
     from locoman.to.collision import Obstacle
 
     table = Obstacle("table", np.array([1.0, 0.0, 0.36]), 0.0, np.array([0.3, 0.4, 0.36]))
-    cfg = CollisionCfg(self_pairs=[], object_body="off", hands_environment="off")
+    cfg = CollisionCfg(
+        self_pairs=[], **(dict.fromkeys(KINDS, "off") | {"object_environment": "penalty"})
+    )
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     builder = StageBuilder(
         kin, (BOX,), contact_frames(), CostWeights(), ContactCfg(), cfg, (table,)

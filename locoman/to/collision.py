@@ -32,15 +32,15 @@ from locoman.scene.rotations import rpy_to_matrix
 from locoman.to.kinematics import rot_z
 
 # The links whose spheres the default self-collision pairs use; the pairs measured most in
-# MuJoCo replays of tiny: the arms against the torso and the hips, the knees against each
-# other (paper A, S2: "between the knees when walking").
+# MuJoCo replays of tiny: the arms against the torso and the hips. The knees against each
+# other are a kind of their own (paper A, S2: "between the knees when walking", with (11)).
 _ARM_LINKS = ("shoulder_yaw_link", "elbow_link", "wrist_yaw_link", "rubber_hand")
 _TRUNK_LINKS = ("torso_link", "pelvis", "{side}_hip_roll_link", "{side}_hip_yaw_link")
 
 
-# How a collision kind enters the TO: not at all, as the penalty (12) on p, or as the hard
-# constraint (11) p >= 0.
-TREATMENTS = ("off", "penalty", "constraint")
+# How a collision kind enters the TO: not at all, as the penalty (12) on p, as the hard
+# constraint (11) p >= 0, or through the homotopy (13) from a smooth stand-in body.
+TREATMENTS = ("off", "penalty", "constraint", "homotopy")
 
 
 def _default_self_pairs() -> list[list[str]]:
@@ -51,31 +51,50 @@ def _default_self_pairs() -> list[list[str]]:
                 if arm == "shoulder_yaw_link" and trunk != "torso_link":
                     continue
                 pairs.append([f"{side}_{arm}", trunk.format(side=side)])
-    pairs.append(["left_knee_link", "right_knee_link"])
     return pairs
 
 
 @dataclasses.dataclass
 class CollisionCfg:
     """The collision terms of the TO (paper A, Sec. IV-D). Each kind has a treatment of
-    :data:`TREATMENTS`: ``off``, ``penalty`` (12) or ``constraint`` (11); a change of
+    :data:`TREATMENTS`: ``off``, ``penalty`` (12), ``constraint`` (11) or ``homotopy``
+    (13) (the kinds against boxes: a sphere pair is its own smooth stand-in); a change of
     treatment changes the problem's structure (one compile).
 
+    The defaults follow Sec. V-A's minimal set for S2, the hands against the objects with
+    (12), but with (12) for the legs against the objects and the knees against each other
+    where the paper has (13) and (11): with those S2 diverged (see ``legs_object``,
+    ``knee_collision``). The arms against the trunk and the carried object against the
+    fixed ones have (12) too.
+
     Attributes:
-        self_pairs: Link pairs of the G1 kept apart between their spheres.
+        self_pairs: Link pairs of the G1 kept apart between their spheres (the arms and
+            the trunk).
         self_collision: Treatment of ``self_pairs``.
-        object_body: Between the robot's body points, and each palm while it does not touch
-            the object, and the object (its box; a trolley's chassis and handle frame).
+        knee_pairs: Link pairs of the legs kept apart while walking.
+        knee_collision: Treatment of ``knee_pairs``; not ``homotopy``. As the constraint
+            (11) (the paper's choice for S2) S2 diverged (cost 2e7 after 80 iterations,
+            against 2403 with the penalty), although the penalty's optimum keeps the
+            knees apart to 0.2 mm: the default is the penalty.
+        object_body: Between the trunk's body points (pelvis, torso) and each object (its
+            box; a trolley's chassis and handle frame).
+        hands_object: Between each palm while it does not touch the object, and the
+            object; a non-solid object's parts check the forearms too.
+        legs_object: Between the legs (hip and knee body points) and each object's boxes.
+            As the homotopy (13) (the paper's choice for S2's legs against the trolley)
+            S2 diverged (cost 5.9e6 after 80 iterations, alpha still 0.97): the default
+            is the penalty.
+        feet_object: Between the feet (a heel and a toe sphere each) and each object's
+            boxes (S1: the feet against the box stepped on). Off by default.
         hands_environment: Between the palms and every fixed object's bounding box.
         feet_environment: Between the feet (a heel and a toe sphere each) and every fixed
-            object's bounding box. Off by default: it keeps S2's swing foot out of the table
-            leg it crosses while the robot carries the box round the table's corner, but
-            with it S2's exact-Hessian phase crawled (cost 2358 at 1000 iterations, not
-            converged).
+            object's bounding box. Off by default: S2's scene keeps the walk clear of the
+            table's legs, and with it on S2's exact-Hessian phase crawled (cost 2358 at
+            1000 iterations, not converged, with the place target by the table's leg).
         object_environment: Between the corners of the object, while no support holds it,
-            and every fixed object's bounding box, and between the obstacles' vertical edges
-            and the object. (As the constraint (11) the four bottom corners of a level box
-            are dependent, and IPOPT stalled: keep it a penalty.)
+            and every fixed object's bounding box, and between the obstacles' vertical and
+            top edges and the object. (As the constraint (11) the four bottom corners of a
+            level box are dependent, and IPOPT stalled: keep it a penalty.)
         margin_m: Clearance added to every pair [m].
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.
@@ -86,7 +105,14 @@ class CollisionCfg:
 
     self_pairs: list[list[str]] = dataclasses.field(default_factory=_default_self_pairs)
     self_collision: str = "penalty"
+    knee_pairs: list[list[str]] = dataclasses.field(
+        default_factory=lambda: [["left_knee_link", "right_knee_link"]]
+    )
+    knee_collision: str = "penalty"
     object_body: str = "penalty"
+    hands_object: str = "penalty"
+    legs_object: str = "penalty"
+    feet_object: str = "off"
     hands_environment: str = "penalty"
     feet_environment: str = "off"
     object_environment: str = "penalty"
@@ -99,15 +125,22 @@ class CollisionCfg:
         errors = []
         model = g1.g1_mjmodel()
         links = {model.body(b).name for b in range(model.nbody)}
-        unknown = sorted({name for pair in self.self_pairs for name in pair} - links)
-        if any(len(pair) != 2 for pair in self.self_pairs) or unknown:
-            errors.append(("self_pairs", f"needs pairs of G1 link names; unknown: {unknown}"))
+        for field in ("self_pairs", "knee_pairs"):
+            pairs = getattr(self, field)
+            unknown = sorted({name for pair in pairs for name in pair} - links)
+            if any(len(pair) != 2 for pair in pairs) or unknown:
+                errors.append((field, f"needs pairs of G1 link names; unknown: {unknown}"))
         for kind in KINDS:
             value = getattr(self, kind)
             if value not in TREATMENTS:
                 # YAML 1.1 reads an unquoted off as false.
                 hint = ' (an unquoted off is YAML for false: write "off")' if value is False else ""
                 errors.append((kind, f"must be one of {list(TREATMENTS)}, got {value!r}{hint}"))
+        for kind in SPHERE_KINDS:
+            if getattr(self, kind) == "homotopy":
+                errors.append(
+                    (kind, "spheres are their own smooth stand-in: use constraint, not homotopy")
+                )
         if self.length_m <= 0.0:
             errors.append(("length_m", "must be > 0 m"))
         if self.softness <= 0.0:
@@ -116,11 +149,20 @@ class CollisionCfg:
             errors.append(("margin_m", "needs smoothing_m > 0 and margin_m >= ln(3) smoothing_m"))
         return errors
 
+    @property
+    def homotopy(self) -> bool:
+        """Some kind is treated by (13): the nodes carry its alpha."""
+        return any(getattr(self, kind) == "homotopy" for kind in KINDS)
 
-# The fields of CollisionCfg that hold a treatment.
+
+# The fields of CollisionCfg that hold a treatment; those between two of the G1's spheres.
+SPHERE_KINDS = ("self_collision", "knee_collision")
 KINDS = (
-    "self_collision",
+    *SPHERE_KINDS,
     "object_body",
+    "hands_object",
+    "legs_object",
+    "feet_object",
     "hands_environment",
     "feet_environment",
     "object_environment",
@@ -203,6 +245,42 @@ def sphere_box_penetration(
     clearance of its centre."""
     clearance = box_clearance(centre_sphere, box_centre, R, half, cfg.smoothing_m)
     return (clearance - radius - cfg.margin_m) / cfg.length_m
+
+
+def sphere_ellipsoid_penetration(
+    centre_sphere: ca.SX, radius: float, box_centre: ca.SX, R: ca.SX, half: ca.SX, cfg
+) -> ca.SX:
+    """(11) for a sphere against the smooth stand-in of a box, the ellipsoid inscribed in
+    it (semi-axes a_i, grown by r + margin): p~ = d^2 - 1, d the sphere centre's scaled
+    distance from the box's centre. It touches the box's faces at their centres and cuts
+    its corners: a guide, which the box replaces as alpha goes to zero. (The ellipsoid
+    through the corners, sqrt(3) a_i, held S2's hips away from the box they carry; from
+    there the solve diverged, cost 4e6 after 150 iterations.)"""
+    x = R.T @ (centre_sphere - box_centre)
+    return ca.sumsqr(x / (half + radius + cfg.margin_m)) - 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class SphereBox:
+    """A sphere (radius 0: a point) of one body against a box of another."""
+
+    centre: ca.SX  # (3,) world [m]
+    radius: float  # [m]
+    box_centre: ca.SX  # (3,) world [m]
+    R: ca.SX  # the box's axes
+    half: ca.SX  # (3,) half sizes [m]
+
+    def penetration(self, cfg) -> ca.SX:
+        """p of the true box (:func:`sphere_box_penetration`)."""
+        return sphere_box_penetration(
+            self.centre, self.radius, self.box_centre, self.R, self.half, cfg
+        )
+
+    def stand_in(self, cfg) -> ca.SX:
+        """p~ of the box's smooth stand-in (:func:`sphere_ellipsoid_penetration`)."""
+        return sphere_ellipsoid_penetration(
+            self.centre, self.radius, self.box_centre, self.R, self.half, cfg
+        )
 
 
 def sphere_sphere_penetration(a: ca.SX, b: ca.SX, radius: float) -> ca.SX:
@@ -305,25 +383,42 @@ def self_collision_penetrations(frame_pose, pairs: list[list[str]], margin: floa
 
 @dataclasses.dataclass
 class CollisionTerms:
-    """The scaled penetrations p (11) of one node, sorted by how the configuration treats
-    their kind: the penalty (12) or the hard constraint (11)."""
+    """The collision terms of one node, sorted by how the configuration treats their kind:
+    the p of the penalty (12) and of the hard constraint (11), and the (p~, p) of the
+    homotopy (13)."""
 
     penalized: list[ca.SX] = dataclasses.field(default_factory=list)
     constrained: list[ca.SX] = dataclasses.field(default_factory=list)
+    homotopy: list[tuple[ca.SX, ca.SX]] = dataclasses.field(default_factory=list)
 
-    def add(self, treatment: str, penetrations: list[ca.SX]) -> None:
-        """Add the p of one kind, treated by ``treatment`` (:data:`TREATMENTS`)."""
+    def add(self, treatment: str, pairs: list[SphereBox], cfg) -> None:
+        """Add the sphere-box pairs of one kind, treated by ``treatment``
+        (:data:`TREATMENTS`)."""
+        if treatment == "homotopy":
+            self.homotopy += [(pair.stand_in(cfg), pair.penetration(cfg)) for pair in pairs]
+        else:
+            self.add_penetrations(treatment, [pair.penetration(cfg) for pair in pairs])
+
+    def add_penetrations(self, treatment: str, penetrations: list[ca.SX]) -> None:
+        """Add the p of one kind, treated by ``treatment``: ``penalty`` or ``constraint``."""
         if treatment == "penalty":
             self.penalized += penetrations
         elif treatment == "constraint":
             self.constrained += penetrations
 
-    def residuals(self, softness: ca.SX, weight: ca.SX) -> ca.SX:
-        """The residuals of (12), scaled by sqrt(weight): their sum of squares is the
-        weighted penalty."""
-        r = [penetration_residual(p, softness) for p in self.penalized]
-        return ca.sqrt(weight) * ca.vertcat(*r) if r else ca.SX(0, 1)
+    def residuals(
+        self, softness: ca.SX, weight: ca.SX, alpha: ca.SX = 0.0, w_hom: ca.SX = 0.0
+    ) -> ca.SX:
+        """The residuals of (12), scaled by sqrt(weight), and with homotopy terms the one
+        of (13b), sqrt(w_hom) alpha: their sum of squares is the weighted penalty."""
+        r = [ca.sqrt(weight) * penetration_residual(p, softness) for p in self.penalized]
+        if self.homotopy:
+            r.append(ca.sqrt(w_hom) * alpha)
+        return ca.vertcat(*r) if r else ca.SX(0, 1)
 
-    def inequalities(self) -> ca.SX:
-        """The left-hand sides of (11), p >= 0."""
-        return ca.vertcat(*self.constrained) if self.constrained else ca.SX(0, 1)
+    def inequalities(self, alpha: ca.SX = 0.0) -> ca.SX:
+        """The left-hand sides of (11), p >= 0, and of (13a), alpha p~ + (1 - alpha) p >= 0."""
+        rows = self.constrained + [
+            alpha * stand_in + (1.0 - alpha) * p for stand_in, p in self.homotopy
+        ]
+        return ca.vertcat(*rows) if rows else ca.SX(0, 1)

@@ -65,6 +65,7 @@ class CostWeights:
             the paper, which states the target without its cost [-].
         object_upright: Object roll and pitch while it moves (ours) [-].
         collision: Penalties (12) of :mod:`locoman.to.collision` [-].
+        homotopy: w_hom of (13b), on alpha^2 at every node [-] (the paper's 2e2).
         average_over_nodes: (14a): the stage and collision weights are divided by the
             number of nodes N (:func:`averaged_over_nodes`); off, they are summed at the
             weights given, as Table I lists them.
@@ -94,6 +95,7 @@ class CostWeights:
     object_goal: float = 1e4
     object_upright: float = 1e2
     collision: float = 1e3
+    homotopy: float = 2e2
     average_over_nodes: bool = False
 
     def check(self) -> list[tuple[str, str]]:

@@ -66,7 +66,7 @@ class NodeLayout:
     [N m] at the contact point (world axes; a hand's is the touched object's push on the
     robot); per object its q = (p, rpy), v = dq/dt and the wrench of its support on it (at
     its bottom centre); the slacks of (2a) and (4), per object the slack of its support's
-    (2a); the time step to the next node [s].
+    (2a); the homotopy parameter alpha of (13); the time step to the next node [s].
 
     Parameters (so that one stage function serves every node of a mode and costs switch
     without rebuilding): swing flags, the yaw reference [rad], the keyframe costs' switches
@@ -103,6 +103,7 @@ class NodeLayout:
                 "foot_slack": 2,
                 "hand_slack": 6,
                 **{object_key(j, "support_slack"): 1 for j in objects},
+                "alpha": 1,  # (13)'s homotopy parameter [-]; 0 without a homotopy kind
                 "dt": 1,
             }
         )

@@ -296,6 +296,7 @@ def write_solution(
             "success": traj.success,
             "iterations": traj.iterations,
             "exact_hessian_iterations": traj.exact_iterations,
+            "homotopy_alpha_max": traj.alpha_max,
             "solve_time_s": traj.solve_time_s,
             "build_time_s": traj.build_time_s,
             "n_variables": traj.n_variables,

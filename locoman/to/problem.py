@@ -40,12 +40,12 @@ from locoman.to.collision import (
     CollisionCfg,
     CollisionTerms,
     Obstacle,
+    SphereBox,
     box_corners,
     edge_point_counts,
     edge_points,
     link_spheres,
     self_collision_penetrations,
-    sphere_box_penetration,
 )
 from locoman.to.contacts import friction_cone_cop, interactive_contact, no_rolling, patch_contact
 from locoman.to.costs import (
@@ -66,6 +66,12 @@ from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
 
 FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
 FOOT_SPHERE_M = 0.04  # radius of the heel and toe spheres [m]
+
+# BODY_POINTS of the trunk (object_body) and of the legs (legs_object).
+LEG_POINTS = tuple(
+    k for k, (link, _, _) in enumerate(BODY_POINTS) if "hip" in link or "knee" in link
+)
+TRUNK_POINTS = tuple(k for k in range(len(BODY_POINTS)) if k not in LEG_POINTS)
 
 
 def _smallest_half_size(obj: ObjectModel) -> float:
@@ -283,17 +289,26 @@ class StageBuilder:
         )
 
     def self_collision_group(self, nodes: np.ndarray) -> StageGroup | None:
-        """(12), or (11), between the spheres of each of ``collision.self_pairs``, from q;
-        None when there are no pairs or the kind is off."""
+        """(12), or (11), between the spheres of each of ``collision.self_pairs`` and of
+        ``collision.knee_pairs``, from q; None when no kind has pairs and a treatment."""
         cfg = self.collision
-        if not cfg.self_pairs or cfg.self_collision == "off":
+        kinds = [
+            (pairs, treatment)
+            for pairs, treatment in (
+                (cfg.self_pairs, cfg.self_collision),
+                (cfg.knee_pairs, cfg.knee_collision),
+            )
+            if pairs and treatment != "off"
+        ]
+        if not kinds:
             return None
         z, p = self._symbols()
         terms = CollisionTerms()
-        terms.add(
-            cfg.self_collision,
-            self_collision_penetrations(self.kin.frame_pose, cfg.self_pairs, cfg.margin_m),
-        )
+        for pairs, treatment in kinds:
+            terms.add_penetrations(
+                treatment, self_collision_penetrations(self.kin.frame_pose, pairs, cfg.margin_m)
+            )
+        # Sphere pairs have no homotopy (CollisionCfg.check), so no alpha.
         of_q = ca.Function(
             "self_collision",
             [self.kin.q, self.theta],
@@ -551,70 +566,68 @@ class StageBuilder:
             for centre, half in self.objects[j].parts
         ]
 
-    def _object_environment(self, z: ca.SX, j: int) -> list[ca.SX]:
-        """p (11) of each corner of object j in each obstacle, and of the obstacles'
-        vertical and top edges in the object."""
+    def _object_environment(self, z: ca.SX, j: int) -> list[SphereBox]:
+        """Each corner of object j against each obstacle, and the obstacles' vertical and
+        top edges against the object."""
         centre, R_o, half = self._object_box(z, j)
         bottom = self._object_frame(z, j).p
         corners = [bottom + R_o @ c for c in box_corners(half)]
         out = []
         for obstacle, count in zip(self.obstacles, self.edge_counts[j], strict=True):
-            middle, R, box = obstacle.frame()
-            out += [sphere_box_penetration(c, 0.0, middle, R, box, self.collision) for c in corners]
+            out += [SphereBox(c, 0.0, *obstacle.frame()) for c in corners]
             out += [
-                sphere_box_penetration(point, 0.0, centre, R_o, half, self.collision)
-                for point in edge_points(obstacle, count)
+                SphereBox(point, 0.0, centre, R_o, half) for point in edge_points(obstacle, count)
             ]
         return out
 
     def collision_terms(self, z: ca.SX, mode: NodeMode) -> CollisionTerms:
-        """p (11) at node k, each kind under its treatment: of the body points, and of the
-        palms not touching it, in each solid object; of each carried solid object's corners,
-        and of the palms, in the obstacles. A palm is its capsule's centre and end spheres."""
+        """The collision terms at node k, each kind under its treatment: the trunk's and the
+        legs' body points, the feet's spheres and the palms not touching it against each
+        object's boxes; each carried solid object's corners against the obstacles; the
+        palms and the feet against the obstacles. A palm is its capsule's centre and end
+        spheres."""
         cfg = self.collision
+        points = self._kin(z, "body_points")
+        body = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
         palms = [self._palm_spheres(z, i) for i in range(2)]
+        feet = [s for i in range(2) for s in self._foot_spheres(z, i)]
         terms = CollisionTerms()
-        solid = [j for j, obj in enumerate(self.objects) if obj.solid]
-        if cfg.object_body != "off":
-            points = self._kin(z, "body_points")
-            body = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
-            for j, obj in enumerate(self.objects):
-                boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j)
-                # A solid box's own corners catch a forearm; a trolley's thin handle bar
-                # passes between the palms and the body points, so its parts check the
-                # forearms too.
-                hands = (
-                    palms if obj.solid else [p + self._forearm(z, i) for i, p in enumerate(palms)]
-                )
-                spheres = body + [s for i in range(2) if mode.hands[i] != j for s in hands[i]]
-                for centre, R_o, half in boxes:
-                    terms.add(
-                        cfg.object_body,
-                        [sphere_box_penetration(c, r, centre, R_o, half, cfg) for c, r in spheres],
-                    )
+        for j, obj in enumerate(self.objects):
+            boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j)
+            # A solid box's own corners catch a forearm; a trolley's thin handle bar passes
+            # between the palms and the body points, so its parts check the forearms too.
+            hands = [
+                s
+                for i in range(2)
+                if mode.hands[i] != j
+                for s in (palms[i] if obj.solid else palms[i] + self._forearm(z, i))
+            ]
+            for kind, spheres in (
+                ("object_body", [body[k] for k in TRUNK_POINTS]),
+                ("hands_object", hands),
+                ("legs_object", [body[k] for k in LEG_POINTS]),
+                ("feet_object", feet),
+            ):
+                treatment = getattr(cfg, kind)
+                if treatment != "off":
+                    pairs = [SphereBox(c, r, *box) for box in boxes for c, r in spheres]
+                    terms.add(treatment, pairs, cfg)
         if cfg.object_environment != "off":
-            for j in solid:
-                if mode.carried(j):
-                    terms.add(cfg.object_environment, self._object_environment(z, j))
-        if cfg.hands_environment != "off":
-            terms.add(
-                cfg.hands_environment,
-                [
-                    sphere_box_penetration(point, radius, *obstacle.frame(), cfg)
+            for j, obj in enumerate(self.objects):
+                if obj.solid and mode.carried(j):
+                    terms.add(cfg.object_environment, self._object_environment(z, j), cfg)
+        for kind, spheres in (
+            ("hands_environment", palms[0] + palms[1]),
+            ("feet_environment", feet),
+        ):
+            treatment = getattr(cfg, kind)
+            if treatment != "off":
+                pairs = [
+                    SphereBox(c, r, *obstacle.frame())
                     for obstacle in self.obstacles
-                    for point, radius in palms[0] + palms[1]
-                ],
-            )
-        if cfg.feet_environment != "off":
-            feet = [s for i in range(2) for s in self._foot_spheres(z, i)]
-            terms.add(
-                cfg.feet_environment,
-                [
-                    sphere_box_penetration(point, radius, *obstacle.frame(), cfg)
-                    for obstacle in self.obstacles
-                    for point, radius in feet
-                ],
-            )
+                    for c, r in spheres
+                ]
+                terms.add(treatment, pairs, cfg)
         return terms
 
     def _stage(
@@ -632,11 +645,17 @@ class StageBuilder:
         if last:
             cost += self.node_cost(z1, p1, mode_next)
             collisions.append(self.collision_terms(z1, mode_next))
-        inequalities += [c.inequalities() for c in collisions]
+        alphas = [self._var(z, "alpha")] + ([self._var(z1, "alpha")] if last else [])
+        inequalities += [c.inequalities(a) for c, a in zip(collisions, alphas, strict=True)]
         eq = ca.vertcat(*equalities)
         ineq = ca.vertcat(*inequalities)
-        softness, weight = self.collision.softness, self.w.collision
-        residuals = ca.vertcat(*[c.residuals(softness, weight) for c in collisions])
+        softness, weight, w_hom = self.collision.softness, self.w.collision, self.w.homotopy
+        residuals = ca.vertcat(
+            *[
+                c.residuals(softness, weight, a, w_hom)
+                for c, a in zip(collisions, alphas, strict=True)
+            ]
+        )
         fn = ca.Function(name, [z, z1, p, p1, self.theta], [ca.vertcat(eq, ineq), cost, residuals])
         lower = np.zeros(eq.numel() + ineq.numel())
         upper = np.r_[np.zeros(eq.numel()), np.full(ineq.numel(), np.inf)]

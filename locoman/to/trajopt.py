@@ -189,6 +189,7 @@ class Trajectory:
     solve_time_s: float
     build_time_s: float
     exact_iterations: int  # of ``iterations``, those with the exact Hessian
+    alpha_max: float  # the largest homotopy parameter alpha of (13) [-]; 0 without one
     n_variables: int
     n_constraints: int
     max_constraint_violation: float
@@ -423,11 +424,16 @@ def _rest_wrench(mass: float) -> np.ndarray:
 
 
 def bounds(
-    inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg
+    inputs: TOInputs,
+    schedule: Schedule,
+    modes: list[NodeMode],
+    cfg: SolverCfg,
+    homotopy: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Variable bounds (width, N): joint position and velocity limits, the initial state,
     robot and objects at rest at the end, inactive contacts' wrenches and slacks at zero,
-    the objects not yet simulated at rest where the scene has them."""
+    the objects not yet simulated at rest where the scene has them; (13)'s alpha in [0, 1]
+    with a ``homotopy`` kind, else 0."""
     layout = inputs.layout
     var, ovar = layout.variables, layout.object_variables
     model = g1.g1_pinocchio_model()
@@ -448,6 +454,7 @@ def bounds(
     )
     dt = var["dt"].start
     lo[dt], hi[dt] = cfg.dt_bounds
+    lo[var["alpha"]], hi[var["alpha"]] = 0.0, 1.0 if homotopy else 0.0
     fix(dt, -1, cfg.dt_bounds[0])
     masses = [obj.mass for obj in inputs.objects]
     _sanity_bounds(layout, lo, hi, (pin.computeTotalMass(model) + sum(masses)) * GRAVITY)
@@ -507,7 +514,12 @@ def _carried_load(inputs: TOInputs, mode: NodeMode, j: int) -> float:
 
 
 def initial_guess(
-    inputs: TOInputs, schedule: Schedule, modes: list[NodeMode], cfg: SolverCfg, robot_mass: float
+    inputs: TOInputs,
+    schedule: Schedule,
+    modes: list[NodeMode],
+    cfg: SolverCfg,
+    robot_mass: float,
+    homotopy: bool = False,
 ) -> np.ndarray:
     """(width, N): Sec. IV-C.2's subtask-like warm start: each subtask's nodes at its
     keyframe (robot and objects), at rest, the weight shared by the feet in contact, each
@@ -520,6 +532,7 @@ def initial_guess(
     n = schedule.nodes
     X = np.zeros((layout.width, n))
     X[var["dt"]] = 0.5 * sum(cfg.dt_bounds)
+    X[var["alpha"]] = 1.0 if homotopy else 0.0
     for k in range(n):
         mode = modes[k]
         kf = inputs.keyframes[schedule.subtask_of(k)]
@@ -577,6 +590,7 @@ class TrajectoryOptimizer:
         if weights.average_over_nodes:
             weights = averaged_over_nodes(weights, self.schedule.nodes)
         self.inputs, self.cfg, self.weights = inputs, solver, weights
+        self.collision = collision
         self.modes = node_modes(inputs, self.schedule)
         self.layout = inputs.layout
         model = g1.g1_pinocchio_model()
@@ -679,8 +693,10 @@ class TrajectoryOptimizer:
         inputs = dataclasses.replace(self.inputs, objects=parameters.objects(self.inputs.objects))
         schedule, modes = self.schedule, self.modes
         P = node_parameters(inputs, schedule, keyframe_costs)
-        lo, hi = bounds(inputs, schedule, modes, self.cfg)
-        X0 = np.clip(initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass), lo, hi)
+        homotopy = self.collision.homotopy
+        lo, hi = bounds(inputs, schedule, modes, self.cfg, homotopy)
+        X0 = initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass, homotopy)
+        X0 = np.clip(X0, lo, hi)
         var = self.layout.variables
         q, v = X0[var["q"]], X0[var["v"]]
         X0[var["kin"]] = np.asarray(self.kinematics.map(schedule.nodes)(q, v))
@@ -729,6 +745,7 @@ class TrajectoryOptimizer:
             exact_iterations=(
                 result.iterations if before is not None or self.cfg.hessian == "exact" else 0
             ),
+            alpha_max=float(part("alpha").max()),
             n_variables=self.nlp.n_x,
             n_constraints=self.nlp.n_g,
             max_constraint_violation=result.max_constraint_violation,
