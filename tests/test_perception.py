@@ -81,30 +81,38 @@ def test_look_at_puts_the_target_on_the_optical_axis():
 def test_contact_targets_pick_the_faces_the_paper_grasps():
     box = object_geometry("box", (0.3, 0.4, 0.2))
     hands = demonstrator.contact_targets(
-        "box", box.patches, ["left_hand", "right_hand"], (0.3, 0.4, 0.2), 0.45
+        "box", box.patches, ["left_hand", "right_hand"], (0.3, 0.4, 0.2), 0.45, 0.72
     )
     assert [(t.effector, t.patch) for t in hands] == [
         ("left_hand", "left"),
         ("right_hand", "right"),
     ]
     assert hands[0].point[1] == pytest.approx(0.2) and hands[1].point[1] == pytest.approx(-0.2)
+    # On a table a tenth above the faces' middle; on the floor near the top.
+    assert hands[0].point[2] == pytest.approx(0.1 + 0.1 * 0.1)
+    low = demonstrator.contact_targets(
+        "box", box.patches, ["left_hand", "right_hand"], (0.3, 0.4, 0.2), 0.45, 0.0
+    )
+    assert all(t.point[2] == pytest.approx(0.1 + 0.6 * 0.1) for t in low)
     feet = demonstrator.contact_targets(
-        "box", box.patches, ["left_foot", "right_foot"], (0.3, 0.4, 0.2), 0.45
+        "box", box.patches, ["left_foot", "right_foot"], (0.3, 0.4, 0.2), 0.45, 0.0
     )
     assert all(t.patch == "top" and t.point[2] == pytest.approx(0.2) for t in feet)
     trolley = object_geometry("trolley", (0.8, 0.5, 0.55))
     bar = demonstrator.contact_targets(
-        "trolley", trolley.patches, ["left_hand", "right_hand"], (0.8, 0.5, 0.55), 0.45
+        "trolley", trolley.patches, ["left_hand", "right_hand"], (0.8, 0.5, 0.55), 0.45, 0.0
     )
     assert {t.patch for t in bar} == {"handle"}
     assert bar[0].point[1] > 0 > bar[1].point[1]  # left hand on the person's left
     table = object_geometry("table", (0.6, 0.8, 0.72))
     floor = demonstrator.contact_targets(
-        "table", table.patches, ["left_foot"], (0.6, 0.8, 0.72), 0.45
+        "table", table.patches, ["left_foot"], (0.6, 0.8, 0.72), 0.45, 0.0
     )
     assert floor[0].patch == "floor" and floor[0].point[0] < -0.3
     with pytest.raises(SceneError, match="no left/right faces"):
-        demonstrator.contact_targets("table", table.patches, ["left_hand"], (0.6, 0.8, 0.72), 0.45)
+        demonstrator.contact_targets(
+            "table", table.patches, ["left_hand"], (0.6, 0.8, 0.72), 0.45, 0.0
+        )
 
 
 def test_demonstrator_ik_meets_reachable_targets():

@@ -18,6 +18,16 @@ class RetargetCfg:
         reach_step_m: Each IK step aims a hand at most this far from where it is [m].
         base_weight: Base orientation of the human placement [-].
         posture_weight: Mapped human joint angles; low, so they only guide [-].
+        fallback_posture_weight: The posture weight of a second round of starts, when no
+            start meets every contact at ``posture_weight``; ``null`` (with the margin): no
+            second round [-].
+        fallback_collision_margin_m: The self-collision margin of that round [m].
+        fallback_palm_facing_weight: That round's pull of each palm's normal into its
+            contact surface [-].
+        base_tilt_max_rad: A keyframe's base roll and pitch at most this, below the TO's
+            bound on them (``locoman.to.trajopt.BASE_TILT_MAX``, short of the roll-pitch-yaw
+            singularity at pi/2); a start that ends more tilted ranks after every other
+            [rad].
         regularization: placo's damping of each step [-].
         foot_weight: Sole positions at the foot contacts or stances; the heaviest task, as
             near to hard as a QP whose steps are bounded allows [-].
@@ -48,6 +58,10 @@ class RetargetCfg:
     reach_step_m: float = 0.01
     base_weight: float = 10.0
     posture_weight: float = 1e-2
+    fallback_posture_weight: float | None = None
+    fallback_collision_margin_m: float | None = None
+    fallback_palm_facing_weight: float = 0.0
+    base_tilt_max_rad: float = 1.4
     regularization: float = 1e-3
     com_margin_m: float = 0.02
     collision_margin_m: float = 0.005
@@ -71,6 +85,15 @@ class RetargetCfg:
             self.posture_weight,
             self.regularization,
         )
+        fallback = (self.fallback_posture_weight, self.fallback_collision_margin_m)
+        if (fallback[0] is None) != (fallback[1] is None):
+            errors.append(
+                ("fallback_posture_weight", "set it and fallback_collision_margin_m, or neither")
+            )
+        if fallback[0] is not None:
+            weights += (fallback[0], self.fallback_palm_facing_weight)
+        if fallback[1] is not None and not 0.0 <= fallback[1] < self.collision_trigger_m:
+            errors.append(("fallback_collision_margin_m", "must be in [0, collision_trigger_m) m"))
         if min(weights) < 0.0:
             errors.append(("hand_weight", "task weights and the regularization must be >= 0"))
         if min(self.com_margin_m, self.collision_margin_m, self.reach_tolerance_m) < 0.0:
@@ -79,6 +102,8 @@ class RetargetCfg:
             errors.append(("collision_trigger_m", "must exceed collision_margin_m"))
         if self.reach_step_m <= 0.0:
             errors.append(("reach_step_m", "must be > 0 m"))
+        if not 0.0 < self.base_tilt_max_rad <= 1.45:
+            errors.append(("base_tilt_max_rad", "must be in (0, 1.45] rad (the TO's bound)"))
         if not self.start_knees_rad or not all(0.0 <= k <= 2.5 for k in self.start_knees_rad):
             errors.append(("start_knees_rad", "needs at least one knee angle in [0, 2.5] rad"))
         if self.iterations < 1 or self.tolerance <= 0.0:

@@ -80,6 +80,12 @@ SKELETON = (
 END_EFFECTORS = ("left_hand", "right_hand", "left_foot", "right_foot")
 STANCE_HALF_WIDTH = 0.11  # [m] lateral offset of each sole from the stance centre
 HANDLE_HALF_SPAN = 0.2  # [m] hands on a bar sit this far either side of its middle
+# A person holds an object's side faces a tenth above their middle, except a low object
+# (face centre below about knee height): that one is held near its top, the way people lift
+# a box off the floor without a deep crouch.
+GRIP_V = 0.1  # [-] height on the face, in [-1, 1] of its half height
+LOW_GRIP_V = 0.6  # [-]: the palm's edge at the top edge of a 0.3 m box
+LOW_FACE_BELOW_M = 0.45  # [m] face centre above the floor
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,6 +151,7 @@ def contact_targets(
     effectors: list[str],
     size: tuple[float, ...],
     step_height_max: float,
+    base_height: float,
 ) -> list[ContactTarget]:
     """Contact targets in the object frame for the subtask's end effectors.
 
@@ -154,6 +161,8 @@ def contact_targets(
         effectors: End effectors the plan puts in contact.
         size: Object extents [m] (length first).
         step_height_max: Feet stand on the top patch up to this height [m].
+        base_height: Height of the object's bottom above the floor [m] (a low object is
+            held near its top).
 
     Raises:
         SceneError: When the object offers no surface for a requested end effector.
@@ -166,7 +175,7 @@ def contact_targets(
         if "left" in by_name and "right" in by_name:
             # Grip the side faces slightly towards the person and above their middle.
             sides = {"left_hand": by_name["left"], "right_hand": by_name["right"]}
-            uvs = {name: _side_uv(p) for name, p in sides.items()}
+            uvs = {name: _side_uv(p, base_height) for name, p in sides.items()}
         else:
             facing = [p for p in patches if p.normal[0] < -0.9]
             if not facing:
@@ -205,10 +214,11 @@ def contact_targets(
     return targets
 
 
-def _side_uv(patch: ContactPatch) -> tuple[float, float]:
+def _side_uv(patch: ContactPatch, base_height: float) -> tuple[float, float]:
     u, _ = patch_axes(patch)
-    # Towards the person (-x) by a quarter of the face, a tenth above its middle.
-    return (-0.25 if u[0] > 0 else 0.25), 0.1
+    low = base_height + patch.centre[2] < LOW_FACE_BELOW_M
+    # Towards the person (-x) by a quarter of the face; above its middle (see GRIP_V).
+    return (-0.25 if u[0] > 0 else 0.25), LOW_GRIP_V if low else GRIP_V
 
 
 def map_to_object(

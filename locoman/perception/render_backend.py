@@ -120,7 +120,12 @@ def render_subtask(
     z0 = height
     geometry = object_geometry(variant.kind, variant.size)
     targets = demonstrator.contact_targets(
-        variant.kind, geometry.patches, subtask["contacts"], variant.size, cfg.step_height_max_m
+        variant.kind,
+        geometry.patches,
+        subtask["contacts"],
+        variant.size,
+        cfg.step_height_max_m,
+        base_height=z0,
     )
     lifted = {t.effector: (t.point + np.array([0.0, 0.0, z0]), t.normal) for t in targets}
     stand = None

@@ -110,6 +110,21 @@ class IKResult:
     iterations: int
 
 
+@dataclasses.dataclass(frozen=True)
+class IKRound:
+    """The weights of one round of starts (see :meth:`Retargeter.solve`).
+
+    Attributes:
+        posture_weight: Mapped human joint angles [-].
+        collision_margin_m: Self-collision margin [m].
+        palm_facing_weight: Each palm's normal into its contact surface (0: free) [-].
+    """
+
+    posture_weight: float
+    collision_margin_m: float
+    palm_facing_weight: float
+
+
 @contextlib.contextmanager
 def _quiet_stdout() -> Iterator[None]:
     """Silence C++ output on file descriptors 1 and 2 (placo reports neutral-pose collisions of the
@@ -196,25 +211,51 @@ class Retargeter:
 
     def solve(self, problem: IKProblem) -> IKResult:
         """Solve one keyframe, from each of the starts of :func:`start_configurations` in
-        turn until one meets every contact; otherwise the one that comes closest.
+        turn until one meets every contact with the base's roll and pitch within
+        ``base_tilt_max_rad``; otherwise the one that comes closest (a tilted base ranks
+        after every upright one).
+
+        When no start succeeds, the starts are tried again at ``fallback_posture_weight``,
+        ``fallback_collision_margin_m`` and ``fallback_palm_facing_weight``: the human's
+        angles then guide less than the contacts demand, the arms may pass closer to the
+        legs (a robot with a shorter reach bends further to a box on the floor) and the
+        palms face their surfaces (a wrist turned under a palm would go through the shelf
+        the palm reaches over).
 
         Raises:
             SolverError: When placo's QP fails (the message names the step).
         """
         best: IKResult | None = None
         steps = 0
-        for q_start in start_configurations(problem, self.cfg.start_knees_rad):
-            result = self._solve_from(problem, q_start)
-            steps += result.iterations
-            if best is None or _total_miss(result) < _total_miss(best):
-                best = result
-            if not result.unreachable:
-                break
+        cfg = self.cfg
+        rounds = [IKRound(cfg.posture_weight, cfg.collision_margin_m, 0.0)]
+        if cfg.fallback_posture_weight is not None and cfg.fallback_collision_margin_m is not None:
+            rounds.append(
+                IKRound(
+                    cfg.fallback_posture_weight,
+                    cfg.fallback_collision_margin_m,
+                    cfg.fallback_palm_facing_weight,
+                )
+            )
+        starts = start_configurations(problem, cfg.start_knees_rad)
+        for ik_round in rounds:
+            for q_start in starts:
+                result = self._solve_from(problem, q_start, ik_round)
+                steps += result.iterations
+                if best is None or self._rank(result) < self._rank(best):
+                    best = result
+                if self._rank(result) == (False, 0.0):
+                    return dataclasses.replace(result, iterations=steps)
         if best is None:
             raise SolverError("retarget.start_knees_rad is empty: the IK has no start")
         return dataclasses.replace(best, iterations=steps)
 
-    def _solve_from(self, problem: IKProblem, q_start: np.ndarray) -> IKResult:
+    def _rank(self, result: IKResult) -> tuple[bool, float]:
+        """(base tilted beyond the bound, total miss [m]): smaller is better."""
+        tilted = bool(np.max(np.abs(result.q35[3:5])) > self.cfg.base_tilt_max_rad)
+        return tilted, _total_miss(result)
+
+    def _solve_from(self, problem: IKProblem, q_start: np.ndarray, ik_round: IKRound) -> IKResult:
         cfg, robot = self.cfg, self.robot
         robot.state.q = q_start.copy()
         robot.update_kinematics()
@@ -233,6 +274,13 @@ class Retargeter:
             task.configure(hand.effector, "soft", cfg.hand_weight)
             targets[hand.effector] = target
             hand_tasks[hand.effector] = task
+            if ik_round.palm_facing_weight > 0.0:
+                # The palm's outward normal into the surface, as the demonstrator holds it.
+                frame = PALM_FRAMES[hand.effector]
+                facing = solver.add_axisalign_task(
+                    frame, self.frames.palm_axes[frame][:, 2], -np.asarray(hand.normal)
+                )
+                facing.configure(f"{hand.effector}_facing", "soft", ik_round.palm_facing_weight)
         for foot in problem.feet:
             frame = SOLE_FRAMES[foot.effector]
             if foot.in_contact or foot.planted:
@@ -256,10 +304,10 @@ class Retargeter:
         base.mask.set_axises("z", "world")
         posture = solver.add_joints_task()
         posture.set_joints(dict(zip(g1.G1_JOINT_NAMES, problem.posture.tolist(), strict=True)))
-        posture.configure("posture", "soft", cfg.posture_weight)
+        posture.configure("posture", "soft", ik_round.posture_weight)
         collisions = solver.add_avoid_self_collisions_constraint()
         collisions.configure("self_collisions", "soft", cfg.collision_weight)
-        collisions.self_collisions_margin = cfg.collision_margin_m
+        collisions.self_collisions_margin = ik_round.collision_margin_m
         collisions.self_collisions_trigger = cfg.collision_trigger_m
         com = solver.add_com_polygon_constraint([], cfg.com_margin_m)
         com.configure("com_support", "soft", cfg.com_weight)

@@ -197,6 +197,7 @@ def _check(
             },
         },
         "joint_limit_violation_rad": joint_limit_violation(result.q),
+        "base_roll_pitch_rad": float(np.max(np.abs(result.q35[3:5]))),
         "self_collisions": [list(p) for p in self_collision_pairs(result.q)],
         "com_m": com.tolist(),
         "com_support_margin_m": margin,
@@ -230,6 +231,8 @@ def _aggregate(rows: list[dict[str, Any]], seconds: list[float], out_dir: Path) 
         "reachable_hand_residual_max_m": worst("_hand", True),
         "unreachable_contacts": sum(len(row["unreachable"]) for row in rows),
         "joint_limit_violation_max_rad": max(r["joint_limit_violation_rad"] for r in rows),
+        # Within retarget.base_tilt_max_rad, or the TO cannot take the keyframe.
+        "base_roll_pitch_max_rad": max(r["base_roll_pitch_rad"] for r in rows),
         "self_collision_pairs": sum(len(r["self_collisions"]) for r in rows),
         "com_support_margin_min_m": min(r["com_support_margin_m"] for r in rows),
         "keyframes_per_second": 1.0 / float(np.median(seconds)),

@@ -39,9 +39,10 @@ def render_keyframe(
     in_contact: list[bool],
     heading: float,
 ) -> np.ndarray:
-    """The G1 at the keyframe, seen from the front left of ``heading`` [rad] (the feet's;
-    a pelvis bent far over has no useful heading of its own), with targets and reached
-    points."""
+    """The G1 at the keyframe, seen from its left and a little from the front of ``heading``
+    [rad] (the feet's; a pelvis bent far over has no useful heading of its own), with targets
+    and reached points. Not from the front: a shelf or a table the robot faces would hide
+    it."""
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
@@ -49,7 +50,7 @@ def render_keyframe(
     base = result.q[:3]
     cam.lookat[:] = base + np.array([0.0, 0.0, -0.15])
     cam.distance = 2.6
-    cam.azimuth = float(np.degrees(heading)) + 180.0 - 40.0
+    cam.azimuth = float(np.degrees(heading)) + 180.0 - 70.0
     cam.elevation = -20.0
     option = mujoco.MjvOption()
     option.geomgroup[:] = 1
