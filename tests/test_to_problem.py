@@ -16,6 +16,7 @@ from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import NodeLayout, ObjectModel, object_key
 from locoman.to.problem import ContactCfg, NodeMode, ObjectMode, StageBuilder
 from locoman.to.supports import Surface
+from locoman.to.trajopt import sole_points
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
 LAYOUT = NodeLayout.of(1)
@@ -107,7 +108,7 @@ def test_a_collision_kind_is_a_penalty_a_hard_constraint_or_a_homotopy():
         inequalities = int(np.count_nonzero(np.isinf(group.upper)))
         shapes[treatment] = (inequalities, int(group.function.size1_out(2)))
     trunk_spheres = 2  # pelvis, torso; both palms touch the object
-    leg_spheres = 4  # hips and knees
+    leg_spheres = 2 * (4 + 6)  # each thigh's capsule chain and each shin's
     assert shapes["off"][1] == 0
     assert shapes["penalty"] == (shapes["off"][0], trunk_spheres)
     assert shapes["constraint"] == (shapes["off"][0] + trunk_spheres, 0)
@@ -162,6 +163,51 @@ def test_an_object_resting_on_another_hands_it_its_weight():
     forgotten[layout.object_variables(1, "support_wrench")][2] = 12.0 * 9.81
     rows = object_rows(forgotten)
     assert rows[12 + 2] == pytest.approx(5.0 * 9.81 * 0.05)  # h1 - h0 - (net force) dt
+
+
+def test_a_robot_standing_on_a_box_hands_it_its_weight_and_the_floor_carries_both():
+    """(6) between a foot and the object it stands on (S1's step onto the box): the robot
+    standing still on a 0.3 m box at rest on the floor; the feet carry the robot, the box's
+    floor contact the robot and the box, and the box's (1) rows vanish. Had the box not
+    received the feet's wrenches, its vertical momentum row would miss the robot's weight."""
+    box = ObjectModel.box("box", np.array([0.4, 0.4, 0.3]), 5.0, 0.8)
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    builder = StageBuilder(
+        kin, (box,), contact_frames(), CostWeights(), ContactCfg(), CollisionCfg(self_pairs=[]), ()
+    )
+    layout = NodeLayout.of(1)
+    mode = NodeMode((True, True), (None, None), (ObjectMode(True, Surface()),), (0, 0))
+    fn = builder.group(mode, mode, False, np.array([0])).function
+    z = np.zeros(layout.width)
+    q = g1.standing_q35()
+    q[2] += 0.3
+    z[layout.variables["q"]] = q
+    z[layout.variables["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
+    z[layout.variables["dt"]] = 0.05
+    robot = float(kin.mass) * 9.81
+    feet = sole_points(q)
+    # Each foot carries half the robot, at its sole centre; the box's floor wrench, at its
+    # bottom centre, carries the robot's and its own weight, with the moment of the feet's
+    # forces about that centre.
+    box_q = np.r_[feet.mean(axis=0)[:2], 0.0, 0.0, 0.0, 0.0]
+    z[layout.object_variables(0, "q")] = box_q
+    wrench = z[layout.variables["foot_wrench"]].reshape(2, 6)
+    wrench[:, 2] = 0.5 * robot
+    z[layout.variables["foot_wrench"]] = wrench.ravel()
+    moment = sum(np.cross(f - box_q[:3], [0.0, 0.0, 0.5 * robot]) for f in feet)
+    z[layout.object_variables(0, "support_wrench")] = np.r_[0.0, 0.0, robot + 5.0 * 9.81, moment]
+    p = np.zeros(layout.n_params)
+    p[layout.parameters["foot_surface_z"]] = 0.3
+    theta = builder.parameters.vector()
+
+    def box_rows(z_k):
+        g = np.asarray(fn(z_k, z_k, p, p, theta)[0]).ravel()
+        return g[6 + 35 : 6 + 35 + 12]  # after the robot's (1a), (1b)
+
+    np.testing.assert_allclose(box_rows(z), 0.0, atol=1e-6)
+    alone = z.copy()
+    alone[layout.object_variables(0, "support_wrench")] = np.r_[0.0, 0.0, 5.0 * 9.81, 0, 0, 0]
+    assert box_rows(alone)[2] == pytest.approx(robot * 0.05)  # h1 - h0 - (net force) dt
 
 
 def _trolley_spec() -> dict:

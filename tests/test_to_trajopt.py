@@ -112,12 +112,14 @@ def test_a_warm_start_from_the_optimum_converges_in_a_few_iterations(tmp_path_fa
 
 
 def test_an_unconverged_gauss_newton_solve_goes_on_with_the_exact_hessian(tmp_path_factory, squat):
-    """Stopped after 3 Gauss-Newton iterations, the squat goes on from that point with the
-    exact Hessian, within the same iteration budget, to the same optimum."""
-    optimizer = _optimizer(tmp_path_factory, max_iterations=200, exact_after_iterations=3)
+    """Stopped after 5 Gauss-Newton iterations, the squat goes on from that point with the
+    exact Hessian, within the same iteration budget, to the same optimum. (Switched after 3
+    it ends at another KKT point, cost 6.22 against 5.97: the problem is not convex, and
+    the exact Hessian from so early a point takes another path.)"""
+    optimizer = _optimizer(tmp_path_factory, max_iterations=200, exact_after_iterations=5)
     traj = optimizer.solve()
     assert traj.success, traj.status
-    assert 0 < traj.exact_iterations == traj.iterations - 3
+    assert 0 < traj.exact_iterations == traj.iterations - 5
     assert traj.cost == pytest.approx(squat.cost, rel=1e-4)
     assert squat.exact_iterations == 0
     capped = _optimizer(tmp_path_factory, max_iterations=5, exact_after_iterations=3).solve()
@@ -149,8 +151,36 @@ def test_pick_and_place_phases_hold_the_object_from_grasp_to_set():
     ]
     assert all(all(p.hands) for p in place)
     assert [p.object_supported for p in place][-1] and not place[0].object_supported
-    with pytest.raises(ConfigError, match="step"):
-        subtask_phases("step", 0, 0, True, cfg)
+    with pytest.raises(ConfigError, match="climb"):
+        subtask_phases("climb", 0, 0, True, cfg)
+
+
+def test_a_step_lands_one_foot_then_the_other_on_the_object_and_the_feet_stay_there():
+    cfg = ScheduleCfg()
+    step = subtask_phases("step", 2, 2, False, cfg)
+    assert [p.name for p in step] == [
+        "swing_left",
+        "stance",
+        "swing_right",
+        "stance",
+        "step_up_left",
+        "stance",
+        "step_up_right",
+        "stance",
+    ]
+    assert [p.feet_raised for p in step[3:]] == [
+        (False, False),
+        (True, False),
+        (True, False),
+        (True, True),
+        (True, True),
+    ]
+    assert step[-1].keyframe and step[-1].stance and not any(p.keyframe for p in step[:-1])
+    grab = subtask_phases("grab", 3, 0, True, cfg, raised=True)
+    assert [p.name for p in grab] == ["reach", "grasp", "lift"]
+    assert all(p.feet_raised == (True, True) for p in grab)
+    with pytest.raises(ConfigError, match="no step down"):
+        subtask_phases("walk", 4, 2, True, cfg, raised=True)
 
 
 def test_the_object_is_simulated_from_the_first_touch():

@@ -75,6 +75,8 @@ class EvaluateCfg:
         nonholonomic_tol_mps: Largest lateral velocity of a chassis's rear wheels, (7a)
             [m/s].
         rider_slip_tol_m: Largest slide of an object on the object carrying it [m].
+        lift_tol_m: An object both hands hold at the end is at least this far above the
+            support it was taken from (``<object>_lift_m``; S1: the basket) [m].
         filmstrip_frames: Frames in the PNG filmstrip.
     """
 
@@ -89,6 +91,7 @@ class EvaluateCfg:
     rest_tilt_tol_rad: float = 0.1
     nonholonomic_tol_mps: float = 1e-4
     rider_slip_tol_m: float = 0.005
+    lift_tol_m: float = 0.05
     filmstrip_frames: int = 8
 
     def check(self) -> list[tuple[str, str]]:
@@ -104,6 +107,7 @@ class EvaluateCfg:
             "rest_tilt_tol_rad",
             "nonholonomic_tol_mps",
             "rider_slip_tol_m",
+            "lift_tol_m",
         )
         errors = [
             (name, f"must be finite and > 0, got {getattr(self, name)}")

@@ -147,9 +147,12 @@ def _rate(mass: float, com: np.ndarray, contacts: list[tuple]) -> np.ndarray:
     return np.r_[force, moment]
 
 
-def object_contacts(traj: dict[str, np.ndarray], hands: np.ndarray, k: int, j: int) -> list:
+def object_contacts(
+    traj: dict[str, np.ndarray], hands: np.ndarray, soles: np.ndarray, k: int, j: int
+) -> list:
     """(point, force, moment) on object j at node k: its support, minus each hand touching
-    it and minus the support of each object resting on it (Newton's third law (6))."""
+    it, each foot standing on it (``soles`` (N, 2, 3): the sole centres [m]) and the support
+    of each object resting on it (Newton's third law (6))."""
     out = []
     if traj["support_kind"][k, j] != "none":
         w = traj["support_wrench"][k, j]
@@ -158,6 +161,9 @@ def object_contacts(traj: dict[str, np.ndarray], hands: np.ndarray, k: int, j: i
         if traj["hand_object"][k, i] == j:
             w = traj["hand_wrench"][k, i]
             out.append((hands[k, i], -w[:3], -w[3:]))
+        if traj["feet_contact"][k, i] and traj["foot_object"][k, i] == j:
+            w = traj["foot_wrench"][k, i]
+            out.append((soles[k, i], -w[:3], -w[3:]))
     for rider in np.flatnonzero(traj["support_base"][k] == j):
         if traj["object_active"][k, rider]:
             w = traj["support_wrench"][k, rider]
@@ -181,14 +187,14 @@ def dynamics_residuals(
         momenta.append(np.r_[hg.linear, hg.angular])
         coms.append(data.com[0].copy())
     hands = hand_points_world(traj)
+    soles = np.array([[p for p, _ in _sole_frames(qk, sole_centre)] for qk in q])
     robot_h = robot_q = 0.0
     for k in range(n - 1):
         contacts = []
-        soles = _sole_frames(q[k], sole_centre)
         for i in range(2):
             if traj["feet_contact"][k, i]:
                 w = traj["foot_wrench"][k, i]
-                contacts.append((soles[i][0], w[:3], w[3:]))
+                contacts.append((soles[k, i], w[:3], w[3:]))
             if traj["hand_object"][k, i] >= 0:
                 w = traj["hand_wrench"][k, i]
                 contacts.append((hands[k, i], w[:3], w[3:]))
@@ -203,7 +209,7 @@ def dynamics_residuals(
         for k in range(n - 1):
             if not traj["object_active"][k + 1, j]:
                 continue
-            rate = _rate(obj.mass, states[k][1], object_contacts(traj, hands, k, j))
+            rate = _rate(obj.mass, states[k][1], object_contacts(traj, hands, soles, k, j))
             worst_h = max(worst_h, np.abs(states[k + 1][0] - states[k][0] - dt[k] * rate).max())
             worst_q = max(worst_q, np.abs(qo[k + 1] - qo[k] - vo[k + 1] * dt[k]).max())
         per_object[obj.name] = (float(worst_h), float(worst_q))

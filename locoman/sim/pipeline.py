@@ -143,6 +143,19 @@ def goal_metrics(traj: dict[str, np.ndarray], names: list[str]) -> dict[str, flo
     return out
 
 
+def held_lifts(traj: dict[str, np.ndarray], names: list[str]) -> dict[str, float]:
+    """Per object both hands hold at the end (it ends at rest in them, not on a support):
+    how far [m] its frame's origin, its bottom, ends above where it was last supported."""
+    out = {}
+    for j, name in enumerate(names):
+        if not np.all(traj["hand_object"][-1] == j):
+            continue
+        supported = np.flatnonzero(traj["support_kind"][:, j] != "none")
+        base = traj["object_q"][supported[-1] if supported.size else 0, j, 2]
+        out[name] = float(traj["object_q"][-1, j, 2] - base)
+    return out
+
+
 def object_names(traj: dict[str, np.ndarray]) -> list[str]:
     return [str(name) for name in traj["object_names"]]
 
@@ -207,16 +220,21 @@ def evaluate_scenario(
         (v for k, v in goal_errors.items() if k.endswith("_goal_yaw_error_rad")), default=0.0
     )
     final = {name: pose_matrix(traj["object_q"][-1, j]) for j, name in enumerate(names)}
+    lifts = held_lifts(traj, names)
     rest = {
-        name: object_at_rest(
-            specs,
-            name,
-            final,
-            traj["object_q"][-1, j],
-            traj["object_v"][-1, j],
-            cfg.rest_height_tol_m,
-            cfg.rest_speed_tol,
-            cfg.rest_tilt_tol_rad,
+        name: (
+            (bool(np.abs(traj["object_v"][-1, j]).max() <= cfg.rest_speed_tol), "hands")
+            if name in lifts
+            else object_at_rest(
+                specs,
+                name,
+                final,
+                traj["object_q"][-1, j],
+                traj["object_v"][-1, j],
+                cfg.rest_height_tol_m,
+                cfg.rest_speed_tol,
+                cfg.rest_tilt_tol_rad,
+            )
         )
         for j, name in enumerate(names)
     }
@@ -237,6 +255,9 @@ def evaluate_scenario(
         lateral = nonholonomic_violation(traj)
         metrics["nonholonomic_violation_max_mps"] = lateral
         checks["nonholonomic"] = lateral <= cfg.nonholonomic_tol_mps
+    for name, lift in lifts.items():
+        metrics[f"{name}_lift_m"] = lift
+        checks[f"{name}_lift"] = lift >= cfg.lift_tol_m
     for pair, value in rider_slip(traj).items():
         metrics[f"{pair}_slip_max_m"] = value
         checks[f"{pair}_slip"] = value <= cfg.rider_slip_tol_m

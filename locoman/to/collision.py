@@ -84,8 +84,9 @@ class CollisionCfg:
             As the homotopy (13) (the paper's choice for S2's legs against the trolley)
             S2 diverged (cost 5.9e6 after 80 iterations, alpha still 0.97): the default
             is the penalty.
-        feet_object: Between the feet (a heel and a toe sphere each) and each object's
-            boxes (S1: the feet against the box stepped on). Off by default.
+        feet_object: Between the feet (a heel and a toe sphere each) and the boxes of the
+            object a ``step`` subtask steps onto, over that subtask's nodes, but for a foot
+            whose sole rests on its top (Sec. V-A, S1: the feet against the box).
         hands_environment: Between the palms and every fixed object's bounding box.
         feet_environment: Between the feet (a heel and a toe sphere each) and every fixed
             object's bounding box. Off by default: S2's scene keeps the walk clear of the
@@ -112,7 +113,7 @@ class CollisionCfg:
     object_body: str = "penalty"
     hands_object: str = "penalty"
     legs_object: str = "penalty"
-    feet_object: str = "off"
+    feet_object: str = "penalty"
     hands_environment: str = "penalty"
     feet_environment: str = "off"
     object_environment: str = "penalty"

@@ -162,8 +162,8 @@ def stance_cost(
 def walking_cost(
     w: CostWeights, q: ca.SX, swing_height: ca.SX | None, yaw_ref: ca.SX | float = 0.0
 ) -> ca.SX:
-    """L_wk of Table I: one foot in the air, ``swing_height`` [m] above the surface it
-    left (None: no swing foot)."""
+    """L_wk of Table I: one foot in the air, ``swing_height`` [m] above its surface (the
+    one it left, or, stepping up, the top it lands on; None: no swing foot)."""
     roll = ca.vertcat(q[_hip("left", "roll")], q[_hip("right", "roll")])
     cost = w.leg_roll * ca.sumsqr(roll) + w.base_pose_walking * (q[4] ** 2 + (q[5] - yaw_ref) ** 2)
     if swing_height is not None:
@@ -172,9 +172,16 @@ def walking_cost(
 
 
 def regularization_cost(
-    w: CostWeights, q: ca.SX, v: ca.SX, wrench: ca.SX, base_omega: ca.SX, dt: ca.SX
+    w: CostWeights,
+    q: ca.SX,
+    v: ca.SX,
+    wrench: ca.SX,
+    base_omega: ca.SX,
+    dt: ca.SX,
+    ground: ca.SX | float = 0.0,
 ) -> ca.SX:
-    """L_reg of Table I."""
+    """L_reg of Table I; the base height is taken over ``ground`` [m], the surface the
+    feet stand on."""
     legs = [6 + k for k in LEGS]
     arms = [6 + k for k in ARMS]
     return (
@@ -184,7 +191,7 @@ def regularization_cost(
         + w.leg_velocity * ca.sumsqr(v[legs])
         + w.arm_velocity * ca.sumsqr(v[arms])
         + w.arm_angle * ca.sumsqr(q[arms] - ca.DM(ARM_NOMINAL))
-        + w.base_height * (q[2] - w.base_height_m) ** 2
+        + w.base_height * (q[2] - ground - w.base_height_m) ** 2
         + w.timestep * (dt - w.timestep_s) ** 2
     )
 

@@ -23,7 +23,7 @@ MCAP_FILE = "trajectory.mcap"
 
 TRAJECTORY = ArtifactSchema(
     "to.trajectory",
-    2,
+    3,
     "solve",
     (
         Field("status", "str", (), "-", "IPOPT's return status"),
@@ -40,7 +40,8 @@ TRAJECTORY = ArtifactSchema(
         Field("hand_slack", "float64", ("N", 2, 3), "m", "slack of (4)"),
         Field("support_slack", "float64", ("N", "M"), "m", "slack of each support's (2a)"),
         Field("dt", "float64", ("N",), "s", "time step to the next node (last unused)"),
-        Field("feet_contact", "bool", ("N", 2), "-", "foot on the ground"),
+        Field("feet_contact", "bool", ("N", 2), "-", "foot in contact"),
+        Field("foot_object", "int64", ("N", 2), "-", "object a foot stands on, -1: ground"),
         Field("hand_object", "int64", ("N", 2), "-", "object each hand touches, -1: none"),
         Field("object_active", "bool", ("N", "M"), "-", "object simulated"),
         Field("support_kind", "str", ("N", "M"), "-", "surface, on_object, chassis or none"),

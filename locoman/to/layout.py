@@ -35,19 +35,17 @@ KINEMATICS, N_KIN = _slices(
             for q, n in (("r", 3), ("r_dot", 3), ("R", 9), ("w", 3))
         },
         **{f"{hand}_{q}": n for hand in HANDS for q, n in (("r", 3), ("R", 9), ("w", 3))},
-        "body_points": 3 * 6,
+        "body_points": 3 * 2,
     }
 )
 
-# Points on the robot kept out of the carried object by the penalty (12), with the radius
-# of the collision capsule around each [m]: link, offset in the link frame.
+# Points on the trunk kept out of the objects (``object_body``), with the radius of the
+# collision capsule around each [m]: link, offset in the link frame. The legs are their
+# capsules' sphere chains (``locoman.to.problem.LEG_LINKS``): a single sphere per link left
+# most of a thigh and a shin uncovered (S1's carried box went 5 cm into the hips unseen).
 BODY_POINTS = (
     ("pelvis", (0.0, 0.0, -0.07), 0.09),
     ("torso_link", (0.0, 0.0, 0.15), 0.12),
-    ("left_hip_yaw_link", (-0.035, 0.0, -0.1), 0.07),
-    ("right_hip_yaw_link", (-0.035, 0.0, -0.1), 0.07),
-    ("left_knee_link", (0.01, 0.0, -0.14), 0.065),
-    ("right_knee_link", (0.01, 0.0, -0.14), 0.065),
 )
 
 

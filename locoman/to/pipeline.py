@@ -86,6 +86,18 @@ def support_at(
     )
 
 
+def step_top(objects: dict[str, dict], poses: dict[str, np.ndarray], name: str) -> float:
+    """[m] world height of the top face of object ``name`` at ``poses[name]``.
+
+    Raises:
+        ArtifactError: If the object has no top face to stand on.
+    """
+    face = top_face(objects[name])
+    if face is None:
+        raise ArtifactError(f"a 'step' onto {name!r}, which has no top face to stand on")
+    return float((poses[name] @ np.r_[face[0], 1.0])[2])
+
+
 def contact_frame(normal: np.ndarray) -> np.ndarray:
     """A rotation (3, 3) whose z column is ``normal`` and whose x is horizontal."""
     n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
@@ -143,18 +155,22 @@ def load_inputs(
                 f"subtask {sub['index']} ({sub['predicate']}) acts on {sub['object']!r}, which "
                 "is fixed in the scene: only a walk may name a fixed object"
             )
-        goal, support, height = None, None, 0.0
+        goal, support, height, step_height = None, None, 0.0, 0.0
         if sub["target"] is not None:
             goal = np.r_[sub["target"]["pos_m"][:2], sub["target"]["yaw_rad"]]
         if sub["predicate"] == "place":
             support, height = support_at(specs, poses, names, sub["object"])
+        if sub["predicate"] == "step":
+            step_height = step_top(specs, poses, sub["object"])
         hands = any("hand" in c for c in sub["contacts"])
         if j is not None and sub["object"] not in touched and hands:
             touched.add(sub["object"])
             points[j], frames[j] = _hand_contacts(contacts_dir, sub["index"], fields)
         object_poses = np.array([object_pose(poses[name]) for name in names])
         keyframes.append(
-            Keyframe(sub["predicate"], kf["q35"], j, object_poses, goal, support, height)
+            Keyframe(
+                sub["predicate"], kf["q35"], j, object_poses, goal, support, height, step_height
+            )
         )
     obstacles = obstacles_from_objects(specs)
     return TOInputs(
@@ -264,6 +280,7 @@ def write_solution(
             "support_slack": traj.support_slack,
             "dt": traj.dt,
             "feet_contact": traj.feet_contact,
+            "foot_object": traj.foot_object,
             "hand_object": traj.hand_object,
             "object_active": traj.object_active,
             "support_kind": traj.support_kind,

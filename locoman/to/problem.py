@@ -65,13 +65,17 @@ from locoman.to.parameters import GlobalParameters, SymbolicGlobals
 from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
 
 FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
+# The thighs and shins (``legs_object``), as their capsules' sphere chains.
+LEG_LINKS = ("left_hip_yaw_link", "left_knee_link", "right_hip_yaw_link", "right_knee_link")
 FOOT_SPHERE_M = 0.04  # radius of the heel and toe spheres [m]
 
-# BODY_POINTS of the trunk (object_body) and of the legs (legs_object).
-LEG_POINTS = tuple(
-    k for k, (link, _, _) in enumerate(BODY_POINTS) if "hip" in link or "knee" in link
-)
-TRUNK_POINTS = tuple(k for k in range(len(BODY_POINTS)) if k not in LEG_POINTS)
+
+def _sphere_function(kin: SymbolicKinematics, link: str) -> tuple[ca.Function, list[float]]:
+    """q -> the world centres [m] of a link's capsule spheres, and their radii [m]."""
+    R, p = kin.frame_pose(link)
+    spheres = link_spheres(link)
+    centres = [p + R @ ca.DM(s.centre) for s in spheres]
+    return ca.Function(f"{link}_spheres", [kin.q], centres), [s.radius for s in spheres]
 
 
 def _smallest_half_size(obj: ObjectModel) -> float:
@@ -99,14 +103,21 @@ class NodeMode:
     """Which contacts hold at one node.
 
     Attributes:
-        feet: (left, right) foot on the ground.
+        feet: (left, right) foot in contact.
         hands: (left, right): the index of the object the hand touches, or None.
         objects: Each object's :class:`ObjectMode`.
+        feet_on: (left, right): the object a foot in contact stands on (its top face, at
+            the node's ``foot_surface_z``), None: the ground. The object receives the
+            foot's wrench (6) and carries it to its own support.
+        step_target: The object the subtask steps onto (the feet are kept off it until
+            they stand on it: the ``feet_object`` kind), None: none.
     """
 
     feet: tuple[bool, bool]
     hands: tuple[int | None, int | None]
     objects: tuple[ObjectMode, ...]
+    feet_on: tuple[int | None, int | None] = (None, None)
+    step_target: int | None = None
 
     @property
     def stance(self) -> bool:
@@ -234,6 +245,9 @@ class StageBuilder:
         self._base_omega = ca.Function(
             "base_omega", [q, v], [euler_rates_to_world(q[3:6]) @ v[3:6]]
         )
+        self._sphere_functions = {
+            link: _sphere_function(kin, link) for link in (*FOREARM_LINKS, *LEG_LINKS)
+        }
         self._cache: dict[tuple, tuple[ca.Function, np.ndarray, np.ndarray]] = {}
 
     # --- access to a node's block ---------------------------------------------------------
@@ -345,17 +359,14 @@ class StageBuilder:
         ends = [r + sign * self.palm_half_length * R[:, 0] for sign in (-1.0, 1.0)]
         return [(point, self.palm_radius) for point in (r, *ends)]
 
+    def _link_spheres(self, z: ca.SX, link: str) -> list[tuple[ca.SX, float]]:
+        """(centre [m], radius [m]) of the spheres of a link's collision capsules, from q."""
+        of_q, radii = self._sphere_functions[link]
+        return list(zip(of_q.call([self._var(z, "q")]), radii, strict=True))
+
     def _forearm(self, z: ca.SX, i: int) -> list[tuple[ca.SX, float]]:
-        """(centre [m], radius [m]) of the spheres of the forearm's (wrist roll link's)
-        collision capsules, from q."""
-        link = FOREARM_LINKS[i]
-        R, p = self.kin.frame_pose(link)
-        spheres = link_spheres(link)
-        of_q = ca.Function(
-            f"{link}_spheres", [self.kin.q], [p + R @ ca.DM(s.centre) for s in spheres]
-        )
-        centres = of_q.call([self._var(z, "q")])
-        return [(c, s.radius) for c, s in zip(centres, spheres, strict=True)]
+        """The spheres of the forearm's (wrist roll link's) collision capsules."""
+        return self._link_spheres(z, FOREARM_LINKS[i])
 
     def _object_frame(self, z: ca.SX, j: int) -> BodyFrame:
         qo, vo = self._ovar(z, j, "q"), self._ovar(z, j, "v")
@@ -390,7 +401,8 @@ class StageBuilder:
 
     def _object_contacts(self, z: ca.SX, p: ca.SX, mode: NodeMode, j: int) -> list[tuple]:
         """(point, force, moment) on object j at a node: its support's wrench, and (6)
-        minus each touching hand's and each rider's support wrench."""
+        minus each touching hand's, each foot's standing on it and each rider's support
+        wrench."""
         out = []
         # An object not yet simulated rests on its support's fixed wrench: the stage into
         # its first simulated node needs it.
@@ -402,6 +414,10 @@ class StageBuilder:
                 r, _ = self._hand_contact(z, p, i, j)
                 w = self._hand_wrench(z, i)
                 out.append((r, -w[0:3], -w[3:6]))
+        for i in range(2):
+            if mode.feet[i] and mode.feet_on[i] == j:
+                w = self._var(z, "foot_wrench")[6 * i : 6 * i + 6]
+                out.append((self._foot(z, i)[0], -w[0:3], -w[3:6]))
         for rider in mode.riders(j):
             w = self._ovar(z, rider, "support_wrench")
             out.append((self._ovar(z, rider, "q")[0:3], -w[0:3], -w[3:6]))
@@ -535,7 +551,10 @@ class StageBuilder:
             var(z, "hand_wrench"),
             *[self._ovar(z, j, "support_wrench") for j in active],
         )
-        cost += regularization_cost(w, q, v, wrenches, self._base_omega(q, v), var(z, "dt"))
+        # The base height is over the surface the feet stand on (the floor, or a box's top).
+        down = [i for i in range(2) if mode.feet[i]]
+        ground = sum(par(p, "foot_surface_z")[i] for i in down) / len(down)
+        cost += regularization_cost(w, q, v, wrenches, self._base_omega(q, v), var(z, "dt"), ground)
         slacks = ca.vertcat(
             var(z, "foot_slack"),
             var(z, "hand_slack"),
@@ -589,6 +608,7 @@ class StageBuilder:
         cfg = self.collision
         points = self._kin(z, "body_points")
         body = [(points[3 * k : 3 * k + 3], r) for k, (_, _, r) in enumerate(BODY_POINTS)]
+        legs = [s for link in LEG_LINKS for s in self._link_spheres(z, link)]
         palms = [self._palm_spheres(z, i) for i in range(2)]
         feet = [s for i in range(2) for s in self._foot_spheres(z, i)]
         terms = CollisionTerms()
@@ -602,11 +622,19 @@ class StageBuilder:
                 if mode.hands[i] != j
                 for s in (palms[i] if obj.solid else palms[i] + self._forearm(z, i))
             ]
+            # The feet are kept off the object a subtask steps onto (Sec. V-A, S1), but for
+            # one whose sole already rests on its top.
+            feet_j = [
+                s
+                for i in range(2)
+                if mode.step_target == j and mode.feet_on[i] != j
+                for s in self._foot_spheres(z, i)
+            ]
             for kind, spheres in (
-                ("object_body", [body[k] for k in TRUNK_POINTS]),
+                ("object_body", body),
                 ("hands_object", hands),
-                ("legs_object", [body[k] for k in LEG_POINTS]),
-                ("feet_object", feet),
+                ("legs_object", legs),
+                ("feet_object", feet_j),
             ):
                 treatment = getattr(cfg, kind)
                 if treatment != "off":
@@ -616,8 +644,10 @@ class StageBuilder:
             for j, obj in enumerate(self.objects):
                 if obj.solid and mode.carried(j):
                     terms.add(cfg.object_environment, self._object_environment(z, j), cfg)
+        # The forearms too: reaching over a shelf's edge, the wrists went through its top.
+        arms = [s for i in range(2) for s in palms[i] + self._forearm(z, i)]
         for kind, spheres in (
-            ("hands_environment", palms[0] + palms[1]),
+            ("hands_environment", arms),
             ("feet_environment", feet),
         ):
             treatment = getattr(cfg, kind)

@@ -16,9 +16,11 @@ A subtask becomes phases by its predicate:
 - ``push``: steps if needed, ``reach``, ``grasp`` (hands on the handle, the object still;
   the keyframe: "the beginning of pushing", Sec. V-C.2), then steps with the hands on it
   while it rolls on its support, and a last ``stance``.
-
-Other predicates (``step`` onto a box, ``grab`` a basket) need contact kinds that are not
-built yet and are refused with a clear error.
+- ``step``: steps on the floor if needed, then two swings, each landing one foot on the
+  object's top (``step_up``), and a ``stance`` on it (the keyframe). From then on the feet
+  stand on that object.
+- ``grab``: a ``pick`` (reach, grasp, lift) of an object the robot takes from where it
+  stands, possibly on another object.
 """
 
 from __future__ import annotations
@@ -46,6 +48,8 @@ class ScheduleCfg:
         lift_nodes: The object carried off its support.
         lower_nodes: The object carried down towards its target.
         set_nodes: The object on its target, hands still on it.
+        end_lift_m: An object the plan ends holding ends at least this far above where
+            it rested at its grasp keyframe [m] (S1: the basket clear of the shelf).
     """
 
     double_support_nodes: int = 2
@@ -58,12 +62,15 @@ class ScheduleCfg:
     lift_nodes: int = 4
     lower_nodes: int = 4
     set_nodes: int = 3
+    end_lift_m: float = 0.06
 
     def check(self) -> list[tuple[str, str]]:
         counts = dataclasses.asdict(self)
         errors = [(k, "must be >= 1") for k, v in counts.items() if k.endswith("_nodes") and v < 1]
         if min(self.step_length_m, self.step_yaw_rad) <= 0.0:
             errors.append(("step_length_m", "step length and turn must be > 0"))
+        if not 0.0 <= self.end_lift_m <= 0.5:
+            errors.append(("end_lift_m", "must be in [0, 0.5] m"))
         return errors
 
 
@@ -77,6 +84,8 @@ class Phase:
         subtask: Index of the plan's subtask.
         nodes: Number of nodes.
         feet: (left, right) in contact with the ground.
+        feet_raised: (left, right) a foot in contact stands on the object the plan stepped
+            onto; a swinging one lands there.
         hands: (left, right) in contact with the subtask's object.
         object_supported: The subtask's object rests on a support (a table, its wheels).
         keyframe: The phase's last node is its subtask's keyframe.
@@ -86,6 +95,7 @@ class Phase:
     subtask: int
     nodes: int
     feet: tuple[bool, bool] = (True, True)
+    feet_raised: tuple[bool, bool] = (False, False)
     hands: tuple[bool, bool] = (False, False)
     object_supported: bool = True
     keyframe: bool = False
@@ -131,6 +141,20 @@ def _steps(subtask: int, steps: int, first_right: bool, cfg: ScheduleCfg, **mode
     return phases
 
 
+def _step_up(subtask: int, first_right: bool, cfg: ScheduleCfg) -> list[Phase]:
+    """Two swings, each landing one foot on the object's top, and the stance on it."""
+    first = 1 if first_right else 0
+    phases, raised = [], [False, False]
+    for i in (first, 1 - first):
+        feet = (i != 0, i != 1)  # the other foot stands
+        raised[i] = True
+        name = "step_up_right" if i == 1 else "step_up_left"
+        phases.append(Phase(name, subtask, cfg.swing_nodes, feet=feet, feet_raised=tuple(raised)))
+        phases.append(Phase("stance", subtask, cfg.double_support_nodes, feet_raised=tuple(raised)))
+    phases[-1] = dataclasses.replace(phases[-1], keyframe=True)
+    return phases
+
+
 def subtask_phases(
     predicate: str,
     subtask: int,
@@ -138,16 +162,38 @@ def subtask_phases(
     first_right: bool,
     cfg: ScheduleCfg,
     push_steps: int = 0,
+    raised: bool = False,
 ) -> list[Phase]:
     """Phases of one subtask (see the module's docstring); ``push_steps``: the steps of a
-    ``push`` after its keyframe."""
+    ``push`` after its keyframe; ``raised``: the feet stand on an object an earlier ``step``
+    put them on (every phase keeps them there, and a subtask that needs steps is refused:
+    the plan has no step down)."""
+    phases = _phases(predicate, subtask, steps, first_right, cfg, push_steps)
+    if not raised:
+        return phases
+    if any(not p.stance for p in phases):
+        raise ConfigError(
+            f"subtask {subtask} ({predicate!r}) needs steps, but the feet stand on an object an "
+            "earlier 'step' put them on, and the TO has no step down"
+        )
+    return [dataclasses.replace(p, feet_raised=(True, True)) for p in phases]
+
+
+def _phases(
+    predicate: str,
+    subtask: int,
+    steps: int,
+    first_right: bool,
+    cfg: ScheduleCfg,
+    push_steps: int,
+) -> list[Phase]:
     if predicate == "walk":
         phases = _steps(subtask, steps, first_right, cfg)
         if not phases:
             phases = [Phase("stance", subtask, cfg.double_support_nodes)]
         last = phases[-1]
         return [*phases[:-1], dataclasses.replace(last, keyframe=True)]
-    if predicate == "pick":
+    if predicate in ("pick", "grab"):
         both = (True, True)
         return [
             *_steps(subtask, steps, first_right, cfg),
@@ -172,10 +218,11 @@ def subtask_phases(
             *_steps(subtask, push_steps, False, cfg, hands=both),
             Phase("stance", subtask, cfg.double_support_nodes, hands=both),
         ]
+    if predicate == "step":
+        return [*_steps(subtask, steps, first_right, cfg), *_step_up(subtask, first_right, cfg)]
     raise ConfigError(
         f"subtask {subtask} ({predicate!r}): the TO has contact schedules for 'walk', 'pick', "
-        "'place' and 'push' only; stepping onto objects and grabbing from a shelf need the "
-        "contact kinds of S1, which are not built yet"
+        "'grab', 'place', 'push' and 'step' only"
     )
 
 

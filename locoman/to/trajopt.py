@@ -33,7 +33,8 @@ class Keyframe:
     """What the TO takes from one subtask's keyframe.
 
     Attributes:
-        predicate: The subtask's verb (``walk``, ``pick``, ``place``, ``push``).
+        predicate: The subtask's verb (``walk``, ``pick``, ``grab``, ``place``, ``push``,
+            ``step``).
         q35: The retargeted configuration.
         object: Index of the subtask's object in :attr:`TOInputs.objects`; None for a walk
             towards a fixed object.
@@ -44,6 +45,7 @@ class Keyframe:
             the other predicates).
         support_height: [m] that support's surface height (world z, or in the supporting
             object's frame for :class:`OnObject`).
+        step_height: [m] world height of the top face a ``step`` puts the feet on.
     """
 
     predicate: str
@@ -53,6 +55,7 @@ class Keyframe:
     goal: np.ndarray | None = None
     support: Support | None = None
     support_height: float = 0.0
+    step_height: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,6 +209,7 @@ class Trajectory:
     support_slack: np.ndarray  # (N, M) [m]
     dt: np.ndarray  # (N,) [s]; the last is unused
     feet_contact: np.ndarray  # (N, 2) bool
+    foot_object: np.ndarray  # (N, 2) index of the object a foot stands on, -1: the ground
     hand_object: np.ndarray  # (N, 2) index of the object each hand touches, -1: none
     object_active: np.ndarray  # (N, M) bool
     support_kind: np.ndarray  # (N, M) str: a Support's name, "none" while carried
@@ -244,12 +248,16 @@ def push_steps(inputs: TOInputs, keyframe: Keyframe, cfg: ScheduleCfg) -> int:
 
 
 def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
-    """Phases of every subtask; steps where the keyframes' feet move (Sec. IV)."""
+    """Phases of every subtask; steps where the keyframes' feet move (Sec. IV); a ``step``'s
+    two swings onto its object cover two of them."""
     phases = []
     feet_before, yaw_before = sole_points(inputs.q_start)[:, :2], _yaw(inputs.q_start)
+    raised = False
     for i, kf in enumerate(inputs.keyframes):
         feet = sole_points(kf.q35)[:, :2]
         steps = step_count(feet_before, feet, yaw_before, _yaw(kf.q35), cfg)
+        if kf.predicate == "step":
+            steps = max(steps - 2, 0)
         # Lead with the foot on the side the robot moves or turns to.
         heading = np.array([math.cos(yaw_before), math.sin(yaw_before)])
         move = feet.mean(axis=0) - feet_before.mean(axis=0)
@@ -257,7 +265,8 @@ def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
         turn = math.remainder(_yaw(kf.q35) - yaw_before, math.tau)
         first_right = (lateral + 0.3 * turn) < 0.0
         pushed = push_steps(inputs, kf, cfg) if kf.predicate == "push" else 0
-        phases += subtask_phases(kf.predicate, i, steps, first_right, cfg, pushed)
+        phases += subtask_phases(kf.predicate, i, steps, first_right, cfg, pushed, raised)
+        raised = raised or kf.predicate == "step"
         feet_before, yaw_before = feet, _yaw(kf.q35)
         if pushed:  # the feet follow the object to its goal
             feet_before = feet_before + (kf.goal[:2] - kf.object_poses[kf.object][:2])
@@ -314,6 +323,12 @@ def _active_from(inputs: TOInputs, schedule: Schedule, supports) -> list[int]:
     return first
 
 
+def stood_on(inputs: TOInputs, subtask: int) -> Keyframe | None:
+    """The keyframe of the last ``step`` up to ``subtask``: where raised feet stand."""
+    steps = [kf for kf in inputs.keyframes[: subtask + 1] if kf.predicate == "step"]
+    return steps[-1] if steps else None
+
+
 def node_modes(inputs: TOInputs, schedule: Schedule) -> list[NodeMode]:
     """The contact mode of every node."""
     supports = _supports(inputs, schedule)
@@ -323,10 +338,17 @@ def node_modes(inputs: TOInputs, schedule: Schedule) -> list[NodeMode]:
         phase = schedule.phase(n)
         touched = inputs.keyframes[phase.subtask].object
         hands = tuple(touched if (h and n > 0) else None for h in phase.hands)
+        step = stood_on(inputs, phase.subtask)
+        feet_on = tuple(
+            step.object if (on and down and step is not None) else None
+            for on, down in zip(phase.feet_raised, phase.feet, strict=True)
+        )
         objects = tuple(
             ObjectMode(n >= first[j], supports[n][j][0]) for j in range(len(inputs.objects))
         )
-        modes.append(NodeMode(phase.feet, hands, objects))
+        kf = inputs.keyframes[phase.subtask]
+        target = kf.object if kf.predicate == "step" else None
+        modes.append(NodeMode(phase.feet, hands, objects, feet_on, target))
     return modes
 
 
@@ -374,6 +396,13 @@ def node_parameters(
     for k, row in enumerate(_supports(inputs, schedule)):
         for j, (_, height) in enumerate(row):
             P[opar(j, "support_z"), k] = height
+    surface = par["foot_surface_z"].start
+    for k in range(n):
+        phase, step = schedule.phase(k), stood_on(inputs, schedule.subtask_of(k))
+        for i in range(2):
+            # A raised foot stands on, or a swinging one lands on, the stepped-on top.
+            if phase.feet_raised[i] and step is not None:
+                P[surface + i, k] = step.step_height
     modes = node_modes(inputs, schedule)
     first = next((j for m in modes for j in m.hands if j is not None), 0)
     points, frames = par["hand_points"].start, par["hand_frames"].start
@@ -432,11 +461,13 @@ def bounds(
     modes: list[NodeMode],
     cfg: SolverCfg,
     homotopy: bool = False,
+    end_lift_m: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Variable bounds (width, N): joint position and velocity limits, the initial state,
-    robot and objects at rest at the end, inactive contacts' wrenches and slacks at zero,
-    the objects not yet simulated at rest where the scene has them; (13)'s alpha in [0, 1]
-    with a ``homotopy`` kind, else 0."""
+    robot and objects at rest at the end, an object still carried at the end at least
+    ``end_lift_m`` [m] above where it rested at its grasp keyframe, inactive contacts'
+    wrenches and slacks at zero, the objects not yet simulated at rest where the scene has
+    them; (13)'s alpha in [0, 1] with a ``homotopy`` kind, else 0."""
     layout = inputs.layout
     var, ovar = layout.variables, layout.object_variables
     model = g1.g1_pinocchio_model()
@@ -468,6 +499,9 @@ def bounds(
     fix(v, -1)
     for j in range(layout.n_objects):
         fix(ovar(j, "v"), -1)
+        if modes[-1].carried(j):
+            grasped = inputs.keyframes[schedule.subtask_of(n - 1)].object_poses[j]
+            lo[ovar(j, "q").start + 2, -1] = grasped[2] + end_lift_m
     for k, mode in enumerate(modes):
         last = k == n - 1
         for i in range(2):
@@ -565,6 +599,8 @@ def initial_guess(
         down = [i for i in range(2) if mode.feet[i]]
         for i in down:
             X[var["foot_wrench"].start + 6 * i + 2, k] = weight / len(down)
+            if mode.feet_on[i] is not None:  # the object stood on carries it to its support
+                X[ovar(mode.feet_on[i], "support_wrench").start + 2, k] += weight / len(down)
     return X
 
 
@@ -590,6 +626,7 @@ class TrajectoryOptimizer:
         cache_dir: Path,
     ) -> None:
         self.schedule = build_schedule(inputs, schedule_cfg)
+        self.end_lift_m = schedule_cfg.end_lift_m
         if weights.average_over_nodes:
             weights = averaged_over_nodes(weights, self.schedule.nodes)
         self.inputs, self.cfg, self.weights = inputs, solver, weights
@@ -697,7 +734,7 @@ class TrajectoryOptimizer:
         schedule, modes = self.schedule, self.modes
         P = node_parameters(inputs, schedule, keyframe_costs)
         homotopy = self.collision.homotopy
-        lo, hi = bounds(inputs, schedule, modes, self.cfg, homotopy)
+        lo, hi = bounds(inputs, schedule, modes, self.cfg, homotopy, self.end_lift_m)
         X0 = initial_guess(inputs, schedule, modes, self.cfg, self.kin.mass, homotopy)
         X0 = np.clip(X0, lo, hi)
         var = self.layout.variables
@@ -765,6 +802,9 @@ class TrajectoryOptimizer:
             support_slack=per_object("support_slack")[:, :, 0],
             dt=part("dt")[:, 0],
             feet_contact=np.array([m.feet for m in self.modes]),
+            foot_object=np.array(
+                [[-1 if j is None else j for j in m.feet_on] for m in self.modes], dtype=int
+            ),
             hand_object=np.array(
                 [[-1 if j is None else j for j in m.hands] for m in self.modes], dtype=int
             ),
