@@ -36,6 +36,7 @@ from locoman.to.kinematics import rot_z
 # other are a kind of their own (paper A, S2: "between the knees when walking", with (11)).
 _ARM_LINKS = ("shoulder_yaw_link", "elbow_link", "wrist_yaw_link", "rubber_hand")
 _TRUNK_LINKS = ("torso_link", "pelvis", "{side}_hip_roll_link", "{side}_hip_yaw_link")
+_THIGHS = ("hip_roll_link", "hip_yaw_link")
 
 
 # How a collision kind enters the TO: not at all, as the penalty (12) on p, as the hard
@@ -51,6 +52,8 @@ def _default_self_pairs() -> list[list[str]]:
                 if arm == "shoulder_yaw_link" and trunk != "torso_link":
                     continue
                 pairs.append([f"{side}_{arm}", trunk.format(side=side)])
+    # The thighs against the trunk: a bend and a step up fold them onto it.
+    pairs += [[f"{side}_{thigh}", "torso_link"] for side in ("left", "right") for thigh in _THIGHS]
     return pairs
 
 
@@ -79,8 +82,9 @@ class CollisionCfg:
         object_body: Between the trunk's body points (pelvis, torso) and each object (its
             box; a trolley's chassis and handle frame).
         hands_object: Between each palm while it does not touch the object, and the
-            object; a non-solid object's parts check the forearms too.
-        legs_object: Between the legs (hip and knee body points) and each object's boxes.
+            object; a non-solid object's parts check the forearms too; the elbows always.
+        legs_object: Between the legs (the thighs' and shins' capsule spheres) and each
+            object's boxes.
             As the homotopy (13) (the paper's choice for S2's legs against the trolley)
             S2 diverged (cost 5.9e6 after 80 iterations, alpha still 0.97): the default
             is the penalty.

@@ -65,6 +65,7 @@ from locoman.to.parameters import GlobalParameters, SymbolicGlobals
 from locoman.to.supports import BodyFrame, OnObject, Support, SupportContact
 
 FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
+ELBOW_LINKS = ("left_elbow_link", "right_elbow_link")
 # The thighs and shins (``legs_object``), as their capsules' sphere chains.
 LEG_LINKS = ("left_hip_yaw_link", "left_knee_link", "right_hip_yaw_link", "right_knee_link")
 FOOT_SPHERE_M = 0.04  # radius of the heel and toe spheres [m]
@@ -246,7 +247,7 @@ class StageBuilder:
             "base_omega", [q, v], [euler_rates_to_world(q[3:6]) @ v[3:6]]
         )
         self._sphere_functions = {
-            link: _sphere_function(kin, link) for link in (*FOREARM_LINKS, *LEG_LINKS)
+            link: _sphere_function(kin, link) for link in (*FOREARM_LINKS, *ELBOW_LINKS, *LEG_LINKS)
         }
         self._cache: dict[tuple, tuple[ca.Function, np.ndarray, np.ndarray]] = {}
 
@@ -616,12 +617,14 @@ class StageBuilder:
             boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j)
             # A solid box's own corners catch a forearm; a trolley's thin handle bar passes
             # between the palms and the body points, so its parts check the forearms too.
+            # The elbows, also of an arm whose hand holds the object: taking a basket that
+            # overhangs a shelf, they went into its floor.
             hands = [
                 s
                 for i in range(2)
                 if mode.hands[i] != j
                 for s in (palms[i] if obj.solid else palms[i] + self._forearm(z, i))
-            ]
+            ] + [s for link in ELBOW_LINKS for s in self._link_spheres(z, link)]
             # The feet are kept off the object a subtask steps onto (Sec. V-A, S1), but for
             # one whose sole already rests on its top.
             feet_j = [
