@@ -9,7 +9,7 @@ import pytest
 from locoman.config.to import EvaluateCfg
 from locoman.errors import SceneError
 from locoman.sim.evaluate import object_at_rest, support_under
-from locoman.sim.pipeline import all_finite, pose_matrix
+from locoman.sim.pipeline import all_finite, held_lifts, pose_matrix
 from locoman.sim.view import view
 
 
@@ -104,3 +104,19 @@ def test_the_viewer_says_it_needs_a_display(tiny_scene, monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(SceneError, match="no display"):
         view(tiny_scene, None)
+
+
+def test_an_object_held_off_its_support_at_the_end_reports_its_lift():
+    """S1 ends with the basket in both hands, lifted off the shelf: its lift is measured
+    from where it was last supported. A ``place`` ends with the hands still on an object
+    that rests on its target: that one is not held."""
+    n = 4
+    z = np.array([1.55, 1.55, 1.58, 1.61])
+    traj = {
+        "hand_object": np.array([[-1, -1], [0, 0], [0, 0], [0, 0]]),
+        "support_kind": np.array([["surface"], ["surface"], ["none"], ["none"]]),
+        "object_q": np.column_stack([np.zeros((n, 2)), z, np.zeros((n, 3))])[:, None, :],
+    }
+    assert held_lifts(traj, ["basket"]) == {"basket": pytest.approx(0.06)}
+    traj["support_kind"][-1, 0] = "surface"
+    assert held_lifts(traj, ["basket"]) == {}

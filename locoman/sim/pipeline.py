@@ -144,11 +144,12 @@ def goal_metrics(traj: dict[str, np.ndarray], names: list[str]) -> dict[str, flo
 
 
 def held_lifts(traj: dict[str, np.ndarray], names: list[str]) -> dict[str, float]:
-    """Per object both hands hold at the end (it ends at rest in them, not on a support):
-    how far [m] its frame's origin, its bottom, ends above where it was last supported."""
+    """Per object both hands hold off any support at the end (it ends at rest in them; a
+    ``place`` ends with the hands still on a supported object): how far [m] its frame's
+    origin, its bottom, ends above where it was last supported."""
     out = {}
     for j, name in enumerate(names):
-        if not np.all(traj["hand_object"][-1] == j):
+        if not np.all(traj["hand_object"][-1] == j) or traj["support_kind"][-1, j] != "none":
             continue
         supported = np.flatnonzero(traj["support_kind"][:, j] != "none")
         base = traj["object_q"][supported[-1] if supported.size else 0, j, 2]
