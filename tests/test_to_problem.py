@@ -282,6 +282,47 @@ def test_the_robot_keeps_out_of_a_trolleys_chassis_and_handle_frame():
     assert penalty(-0.45) > 1.0  # the torso in the handle frame
 
 
+def test_a_foot_in_a_trolleys_wheel_pays_the_feet_object_penalty_while_it_is_underfoot():
+    """S2's left foot went 2.4 cm into a trolley's rear wheel while pushing: a trolley on
+    the floor (``NodeMode.underfoot``) keeps the feet out of its chassis under
+    ``feet_object``; the same foot costs nothing once the trolley is not underfoot, or
+    when the foot stands on it."""
+    trolley = ObjectModel.from_spec("trolley", _trolley_spec())
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    only = dict.fromkeys(KINDS, "off") | {"feet_object": "penalty"}
+    builder = StageBuilder(
+        kin,
+        (trolley,),
+        contact_frames(),
+        CostWeights(),
+        ContactCfg(),
+        CollisionCfg(self_pairs=[], **only),
+        (),
+    )
+    q = g1.standing_q35()
+    zn = np.zeros(WIDTH)
+    zn[VARIABLES["q"]] = q
+    zn[VARIABLES["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
+
+    def penalty(trolley_x: float, underfoot: tuple[int, ...], feet_on=(None, None)) -> float:
+        mode = NodeMode((True, True), (None, None), (ObjectMode(True, None),), feet_on, underfoot)
+        z = ca.SX.sym("z", WIDTH)
+        r = builder.collision_terms(z, mode).residuals(
+            builder.collision.softness, builder.w.collision
+        )
+        fn = ca.Function("r", [z, builder.theta], [ca.sumsqr(r)])
+        z_k = zn.copy()
+        # The chassis' rear end (x = -0.4 in its frame) at trolley_x - 0.4.
+        z_k[VARIABLES[object_key(0, "q")]] = [trolley_x, SOLE_CENTRE_LEFT[1], 0.0, 0, 0, 0]
+        return float(fn(z_k, builder.parameters.vector()))
+
+    over_toe = SOLE_CENTRE_LEFT[0] + 0.4
+    assert penalty(over_toe, (0,)) > 1.0  # the chassis' rear end over the sole's centre
+    assert penalty(over_toe + 0.3, (0,)) < 1e-3  # 20 cm ahead of the toe
+    assert penalty(over_toe, ()) == 0.0
+    assert penalty(over_toe, (0,), (0, 0)) == 0.0
+
+
 def test_a_foot_in_a_fixed_obstacle_pays_the_feet_environment_penalty():
     """A table leg (a fixed box) 2 cm off the left foot's toe, then over it: only the latter
     costs (12) under ``feet_environment``; with the kind off, nothing."""

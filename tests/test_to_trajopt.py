@@ -225,6 +225,9 @@ def test_a_picked_object_stays_simulated_when_set_on_one_that_joins_later():
     assert [m.objects[0].active for m in modes] == [k >= touch for k in range(len(modes))]
     assert [m.objects[1].active for m in modes] == [k >= landed for k in range(len(modes))]
     assert modes[landed].objects[0].support == OnObject(1)
+    # The trolley on the floor is in the feet's way throughout; the box (on the table,
+    # carried, on the trolley) never.
+    assert all(m.underfoot == (1,) for m in modes)
 
 
 def test_cone_violation_is_zero_inside_and_the_excess_outside():

@@ -110,15 +110,16 @@ class NodeMode:
         feet_on: (left, right): the object a foot in contact stands on (its top face, at
             the node's ``foot_surface_z``), None: the ground. The object receives the
             foot's wrench (6) and carries it to its own support.
-        step_target: The object the subtask steps onto (the feet are kept off it until
-            they stand on it: the ``feet_object`` kind), None: none.
+        underfoot: The objects resting on the floor, where a foot can reach them: the
+            feet are kept off them (the ``feet_object`` kind), but for a foot standing on
+            one.
     """
 
     feet: tuple[bool, bool]
     hands: tuple[int | None, int | None]
     objects: tuple[ObjectMode, ...]
     feet_on: tuple[int | None, int | None] = (None, None)
-    step_target: int | None = None
+    underfoot: tuple[int, ...] = ()
 
     @property
     def stance(self) -> bool:
@@ -625,12 +626,12 @@ class StageBuilder:
                 if mode.hands[i] != j
                 for s in (palms[i] if obj.solid else palms[i] + self._forearm(z, i))
             ] + [s for link in ELBOW_LINKS for s in self._link_spheres(z, link)]
-            # The feet are kept off the object a subtask steps onto (Sec. V-A, S1), but for
-            # one whose sole already rests on its top.
+            # The feet are kept off an object on the floor (Sec. V-A, S1: the box stepped
+            # onto; S2: a trolley's wheels), but for one whose sole rests on its top.
             feet_j = [
                 s
                 for i in range(2)
-                if mode.step_target == j and mode.feet_on[i] != j
+                if j in mode.underfoot and mode.feet_on[i] != j
                 for s in self._foot_spheres(z, i)
             ]
             for kind, spheres in (

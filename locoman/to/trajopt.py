@@ -26,6 +26,9 @@ from locoman.to.schedule import Schedule, ScheduleCfg, step_count, subtask_phase
 from locoman.to.supports import OnObject, Support
 
 GRAVITY = 9.81  # [m/s^2]
+# A surface up to this high is the floor: an object resting on it is in the feet's way
+# (the ``feet_object`` kind) [m].
+FLOOR_HEIGHT_MAX = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -346,9 +349,12 @@ def node_modes(inputs: TOInputs, schedule: Schedule) -> list[NodeMode]:
         objects = tuple(
             ObjectMode(n >= first[j], supports[n][j][0]) for j in range(len(inputs.objects))
         )
-        kf = inputs.keyframes[phase.subtask]
-        target = kf.object if kf.predicate == "step" else None
-        modes.append(NodeMode(phase.feet, hands, objects, feet_on, target))
+        underfoot = tuple(
+            j
+            for j, (support, height) in enumerate(supports[n])
+            if support is not None and support.base is None and height <= FLOOR_HEIGHT_MAX
+        )
+        modes.append(NodeMode(phase.feet, hands, objects, feet_on, underfoot))
     return modes
 
 
