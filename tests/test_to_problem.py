@@ -284,10 +284,12 @@ def test_the_robot_keeps_out_of_a_trolleys_chassis_and_handle_frame():
 
 def test_a_foot_in_a_trolleys_wheel_pays_the_feet_object_penalty_while_it_is_underfoot():
     """S2's left foot went 2.4 cm into a trolley's rear wheel while pushing: a trolley on
-    the floor (``NodeMode.underfoot``) keeps the feet out of its chassis under
-    ``feet_object``; the same foot costs nothing once the trolley is not underfoot, or
-    when the foot stands on it."""
+    the floor (``NodeMode.underfoot``) keeps the feet out of its wheels under
+    ``feet_object``, not out of the space under its platform; the same foot costs nothing
+    once the trolley is not underfoot, or when the foot stands on it."""
     trolley = ObjectModel.from_spec("trolley", _trolley_spec())
+    rear_left = np.array(trolley.wheels[2][0])
+    assert rear_left[0] < 0.0 < rear_left[1] and len(trolley.wheels) == 4
     kin = SymbolicKinematics(g1.g1_pinocchio_model())
     only = dict.fromkeys(KINDS, "off") | {"feet_object": "penalty"}
     builder = StageBuilder(
@@ -304,7 +306,7 @@ def test_a_foot_in_a_trolleys_wheel_pays_the_feet_object_penalty_while_it_is_und
     zn[VARIABLES["q"]] = q
     zn[VARIABLES["kin"]] = np.asarray(builder.kinematics(q, np.zeros(35))).ravel()
 
-    def penalty(trolley_x: float, underfoot: tuple[int, ...], feet_on=(None, None)) -> float:
+    def penalty(xy: np.ndarray, underfoot: tuple[int, ...], feet_on=(None, None)) -> float:
         mode = NodeMode((True, True), (None, None), (ObjectMode(True, None),), feet_on, underfoot)
         z = ca.SX.sym("z", WIDTH)
         r = builder.collision_terms(z, mode).residuals(
@@ -312,15 +314,14 @@ def test_a_foot_in_a_trolleys_wheel_pays_the_feet_object_penalty_while_it_is_und
         )
         fn = ca.Function("r", [z, builder.theta], [ca.sumsqr(r)])
         z_k = zn.copy()
-        # The chassis' rear end (x = -0.4 in its frame) at trolley_x - 0.4.
-        z_k[VARIABLES[object_key(0, "q")]] = [trolley_x, SOLE_CENTRE_LEFT[1], 0.0, 0, 0, 0]
+        z_k[VARIABLES[object_key(0, "q")]] = [*xy, 0.0, 0.0, 0.0, 0.0]
         return float(fn(z_k, builder.parameters.vector()))
 
-    over_toe = SOLE_CENTRE_LEFT[0] + 0.4
-    assert penalty(over_toe, (0,)) > 1.0  # the chassis' rear end over the sole's centre
-    assert penalty(over_toe + 0.3, (0,)) < 1e-3  # 20 cm ahead of the toe
-    assert penalty(over_toe, ()) == 0.0
-    assert penalty(over_toe, (0,), (0, 0)) == 0.0
+    wheel_on_sole = SOLE_CENTRE_LEFT[:2] - rear_left[:2]
+    assert penalty(wheel_on_sole, (0,)) > 1.0
+    assert penalty(SOLE_CENTRE_LEFT[:2], (0,)) < 1e-3  # under the platform, between wheels
+    assert penalty(wheel_on_sole, ()) == 0.0
+    assert penalty(wheel_on_sole, (0,), (0, 0)) == 0.0
 
 
 def test_a_foot_in_a_fixed_obstacle_pays_the_feet_environment_penalty():

@@ -88,11 +88,13 @@ class CollisionCfg:
             As the homotopy (13) (the paper's choice for S2's legs against the trolley)
             S2 diverged (cost 5.9e6 after 80 iterations, alpha still 0.97): the default
             is the penalty.
-        feet_object: Between the feet (a heel and a toe sphere each) and the boxes of
-            every object resting on the floor, but for a foot whose sole rests on its top
-            (Sec. V-A, S1: the feet against the box stepped onto; S2: a trolley's wheels,
-            which a foot went 2.4 cm into while pushing when only a stepped-onto object
-            counted). Objects on a table or carried are out of the feet's way.
+        feet_object: Between the feet (a heel and a toe sphere each) and every object
+            resting on the floor, but for a foot whose sole rests on its top (Sec. V-A,
+            S1: the feet against the box stepped onto; S2: a trolley's wheels, which a
+            foot went 2.4 cm into while pushing when only a stepped-onto object counted).
+            A solid object is its box, a wheeled one its wheels' boxes (against its
+            chassis box S2 stopped at 1000 iterations, the robot a stride back and its
+            wrists in the handle). Objects on a table or carried are out of the feet's way.
         hands_environment: Between the palms and every fixed object's bounding box.
         feet_environment: Between the feet (a heel and a toe sphere each) and every fixed
             object's bounding box. Off by default: S2's scene keeps the walk clear of the

@@ -154,6 +154,9 @@ class ObjectModel:
             (centre (3,), half sizes (3,)) in its frame [m]: a trolley's chassis (platform,
             struts and wheels) and its handle frame, which the robot's body must keep out
             of while it walks round and pushes.
+        wheels: A wheeled object's wheels as boxes (centre (3,), half sizes (3,)) in its
+            frame [m]: what the feet keep out of (its platform is over them: its chassis
+            box would keep the feet a stride back from the handle).
     """
 
     name: str
@@ -166,6 +169,7 @@ class ObjectModel:
     prehensile: bool = False
     rear_axle_x: float | None = None
     parts: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
+    wheels: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
 
     @property
     def wheeled(self) -> bool:
@@ -189,6 +193,11 @@ class ObjectModel:
             prehensile=True,
             rear_axle_x=float(wheels[wheels[:, 0] < 0.0, 0].mean()),
             parts=_chassis_and_frame(primitives),
+            wheels=tuple(
+                (tuple(map(float, p["pos"])), tuple(_half_sizes(p).tolist()))
+                for p in primitives
+                if p["name"].startswith("wheel")
+            ),
         )
 
     @classmethod

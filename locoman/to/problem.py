@@ -578,14 +578,11 @@ class StageBuilder:
         frame, obj = self._object_frame(z, j), self.objects[j]
         return frame.p + frame.R @ obj.com, frame.R, ca.vertcat(obj.half_extents, obj.com[2])
 
-    def _object_parts(self, z: ca.SX, j: int) -> list[tuple[ca.SX, ca.SX, ca.DM]]:
-        """Centre [m], rotation and half sizes [m] of each collision box of an object that
-        is not solid as a whole (:attr:`ObjectModel.parts`)."""
+    def _object_parts(self, z: ca.SX, j: int, parts: tuple) -> list[tuple[ca.SX, ca.SX, ca.DM]]:
+        """Centre [m], rotation and half sizes [m] of boxes fixed to object j, each
+        (centre, half sizes) in its frame (:attr:`ObjectModel.parts`, ``wheels``)."""
         frame = self._object_frame(z, j)
-        return [
-            (frame.p + frame.R @ ca.DM(centre), frame.R, ca.DM(half))
-            for centre, half in self.objects[j].parts
-        ]
+        return [(frame.p + frame.R @ ca.DM(centre), frame.R, ca.DM(half)) for centre, half in parts]
 
     def _object_environment(self, z: ca.SX, j: int) -> list[SphereBox]:
         """Each corner of object j against each obstacle, and the obstacles' vertical and
@@ -615,7 +612,8 @@ class StageBuilder:
         feet = [s for i in range(2) for s in self._foot_spheres(z, i)]
         terms = CollisionTerms()
         for j, obj in enumerate(self.objects):
-            boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j)
+            boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j, obj.parts)
+            under_feet = boxes if obj.solid else self._object_parts(z, j, obj.wheels)
             # A solid box's own corners catch a forearm; a trolley's thin handle bar passes
             # between the palms and the body points, so its parts check the forearms too.
             # The elbows, also of an arm whose hand holds the object: taking a basket that
@@ -634,15 +632,15 @@ class StageBuilder:
                 if j in mode.underfoot and mode.feet_on[i] != j
                 for s in self._foot_spheres(z, i)
             ]
-            for kind, spheres in (
-                ("object_body", body),
-                ("hands_object", hands),
-                ("legs_object", legs),
-                ("feet_object", feet_j),
+            for kind, spheres, kind_boxes in (
+                ("object_body", body, boxes),
+                ("hands_object", hands, boxes),
+                ("legs_object", legs, boxes),
+                ("feet_object", feet_j, under_feet),
             ):
                 treatment = getattr(cfg, kind)
                 if treatment != "off":
-                    pairs = [SphereBox(c, r, *box) for box in boxes for c, r in spheres]
+                    pairs = [SphereBox(c, r, *box) for box in kind_boxes for c, r in spheres]
                     terms.add(treatment, pairs, cfg)
         if cfg.object_environment != "off":
             for j, obj in enumerate(self.objects):
