@@ -397,3 +397,48 @@ def test_a_carried_box_dipped_over_a_tables_rim_pays_the_object_environment_pena
     assert np.all(corners[~over_table, 0] < 0.7 - cfg.margin_m)  # off the edge
     assert penalty(0.695) > 10.0
     assert penalty(0.745) < 1e-3
+
+
+def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
+    """S1's right forearm went 5 cm into the held basket's floor: the TO saw a solid box,
+    whose holding arm it does not check (the palm is on its face). A basket is its floor
+    and walls (``parts``), and an arm holding it keeps its forearm out of them; an arm
+    holding a solid box or gripping a trolley's handle is not checked, a free one is."""
+    from locoman.scene.objects import object_geometry
+
+    size = [0.3, 0.4, 0.22]
+    geometry = object_geometry("basket", size)
+    spec = {
+        "kind": "basket",
+        "size_m": size,
+        "mass_kg": 0.8,
+        "friction": 0.8,
+        "primitives": [dataclasses.asdict(p) for p in geometry.primitives],
+    }
+    basket = ObjectModel.from_spec("basket", spec)
+    assert not basket.solid and len(basket.parts) == 5
+    trolley = ObjectModel.from_spec("trolley", _trolley_spec())
+    kin = SymbolicKinematics(g1.g1_pinocchio_model())
+    builder = StageBuilder(
+        kin,
+        (basket, BOX, trolley),
+        contact_frames(),
+        CostWeights(),
+        ContactCfg(),
+        CollisionCfg(self_pairs=[]),
+        (),
+    )
+    z = ca.SX.sym("z", NodeLayout.of(3).width)
+    forearm = len(builder._forearm(z, 0))
+    palm = [ca.SX.zeros(3)] * 3
+    at_rest = (ObjectMode(True, Surface()),) * 3
+
+    def checked(j: int, holding: bool) -> int:
+        mode = NodeMode((True, True), (j if holding else None, None), at_rest)
+        return len(builder._arm_spheres(z, mode, 0, j, palm))
+
+    assert forearm > 0
+    assert checked(0, holding=True) == forearm  # the basket's floor and walls
+    assert checked(1, holding=True) == 0  # a solid box: the palm on its face
+    assert checked(2, holding=True) == 0  # a gripped handle
+    assert checked(0, holding=False) == 3 + forearm and checked(1, holding=False) == 3

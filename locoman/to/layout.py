@@ -146,7 +146,7 @@ class ObjectModel:
         half_extents: (2,) half sizes of the bottom patch [m] (a trolley's: of its wheelbase).
         friction: Coefficient of its surfaces [-].
         solid: Its bounding box is solid, so that the robot's body and the obstacles are
-            kept out of it (a trolley's open frame is not).
+            kept out of it (a trolley's open frame and a basket are not: their ``parts``).
         prehensile: The hands grasp it (a handle): their contacts drop (3) (Sec. IV-A.2).
         rear_axle_x: A wheeled chassis (Sec. IV-A.3): x of its fixed-direction (rear)
             wheels' axle in its frame [m]; None for an object that rests on a face.
@@ -179,12 +179,17 @@ class ObjectModel:
     def from_spec(cls, name: str, spec: dict) -> ObjectModel:
         """The object of the scene's object table (``objects.json``) entry ``spec``: a
         trolley (kind ``trolley``) is a wheeled chassis with the mass of a box of its size,
-        the wheels' layout read from its ``wheel_*`` primitives; anything else a solid box."""
+        the wheels' layout read from its ``wheel_*`` primitives; a basket an open box, its
+        floor and walls its parts; anything else a solid box."""
         size = np.array(spec["size_m"], dtype=float)
         model = cls.box(name, size, spec["mass_kg"], spec["friction"])
+        primitives = spec["primitives"]
+        if spec["kind"] == "basket":
+            # Open: a hand holding a wall keeps its forearm out of the floor and the walls
+            # (as a solid box its holding forearm went unchecked, 5 cm into the floor).
+            return dataclasses.replace(model, solid=False, parts=_boxes(primitives))
         if spec["kind"] != "trolley":
             return model
-        primitives = spec["primitives"]
         wheels = np.array([p["pos"][:2] for p in primitives if p["name"].startswith("wheel")])
         return dataclasses.replace(
             model,
@@ -193,11 +198,7 @@ class ObjectModel:
             prehensile=True,
             rear_axle_x=float(wheels[wheels[:, 0] < 0.0, 0].mean()),
             parts=_chassis_and_frame(primitives),
-            wheels=tuple(
-                (tuple(map(float, p["pos"])), tuple(_half_sizes(p).tolist()))
-                for p in primitives
-                if p["name"].startswith("wheel")
-            ),
+            wheels=_boxes([p for p in primitives if p["name"].startswith("wheel")]),
         )
 
     @classmethod
@@ -223,6 +224,11 @@ def _chassis_and_frame(primitives: list[dict]) -> tuple:
             lo, hi = low[rows].min(axis=0), high[rows].max(axis=0)
             boxes.append((tuple((0.5 * (lo + hi)).tolist()), tuple((0.5 * (hi - lo)).tolist())))
     return tuple(boxes)
+
+
+def _boxes(primitives: list[dict]) -> tuple:
+    """Each primitive as a collision box (centre, half sizes) in its object's frame [m]."""
+    return tuple((tuple(map(float, p["pos"])), tuple(_half_sizes(p).tolist())) for p in primitives)
 
 
 def _half_sizes(primitive: dict) -> np.ndarray:

@@ -598,10 +598,25 @@ class StageBuilder:
             ]
         return out
 
+    def _arm_spheres(
+        self, z: ca.SX, mode: NodeMode, i: int, j: int, palm: list[tuple[ca.SX, float]]
+    ) -> list[tuple[ca.SX, float]]:
+        """The spheres of arm i kept out of object j (``hands_object``): a free palm; a
+        solid box's own corners catch a forearm, while a trolley's thin handle bar passes
+        between the palms and the body points, so an open object checks the forearm too.
+        A hand holding the object: a hand pressing an open object's wall keeps its forearm
+        beside it (S1's basket: the forearm went 5 cm into its floor); a gripped handle
+        sits in the hand, and a solid box's face is the palm's contact (the tiny and S2
+        boxes: not checked, which leaves their solved structure as it was)."""
+        obj = self.objects[j]
+        if mode.hands[i] != j:
+            return palm if obj.solid else palm + self._forearm(z, i)
+        return [] if obj.solid or self._prehensile(j) else self._forearm(z, i)
+
     def collision_terms(self, z: ca.SX, mode: NodeMode) -> CollisionTerms:
         """The collision terms at node k, each kind under its treatment: the trunk's and the
         legs' body points, the feet's spheres and the palms not touching it against each
-        object's boxes; each carried solid object's corners against the obstacles; the
+        object's boxes; each carried object's corners against the obstacles; the
         palms and the feet against the obstacles. A palm is its capsule's centre and end
         spheres."""
         cfg = self.collision
@@ -613,17 +628,11 @@ class StageBuilder:
         terms = CollisionTerms()
         for j, obj in enumerate(self.objects):
             boxes = [self._object_box(z, j)] if obj.solid else self._object_parts(z, j, obj.parts)
-            under_feet = boxes if obj.solid else self._object_parts(z, j, obj.wheels)
-            # A solid box's own corners catch a forearm; a trolley's thin handle bar passes
-            # between the palms and the body points, so its parts check the forearms too.
+            under_feet = boxes if obj.solid else self._object_parts(z, j, obj.wheels or obj.parts)
             # The elbows, also of an arm whose hand holds the object: taking a basket that
             # overhangs a shelf, they went into its floor.
-            hands = [
-                s
-                for i in range(2)
-                if mode.hands[i] != j
-                for s in (palms[i] if obj.solid else palms[i] + self._forearm(z, i))
-            ] + [s for link in ELBOW_LINKS for s in self._link_spheres(z, link)]
+            hands = [s for i in range(2) for s in self._arm_spheres(z, mode, i, j, palms[i])]
+            hands += [s for link in ELBOW_LINKS for s in self._link_spheres(z, link)]
             # The feet are kept off an object on the floor (Sec. V-A, S1: the box stepped
             # onto; S2: a trolley's wheels), but for one whose sole rests on its top.
             feet_j = [
@@ -643,8 +652,8 @@ class StageBuilder:
                     pairs = [SphereBox(c, r, *box) for box in kind_boxes for c, r in spheres]
                     terms.add(treatment, pairs, cfg)
         if cfg.object_environment != "off":
-            for j, obj in enumerate(self.objects):
-                if obj.solid and mode.carried(j):
+            for j in range(len(self.objects)):
+                if mode.carried(j):
                     terms.add(cfg.object_environment, self._object_environment(z, j), cfg)
         # The forearms too: reaching over a shelf's edge, the wrists went through its top.
         arms = [s for i in range(2) for s in palms[i] + self._forearm(z, i)]
