@@ -13,7 +13,7 @@ import pytest
 
 from locoman.config.figures import FiguresCfg, GridCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
-from locoman.errors import ConfigError
+from locoman.errors import ArtifactError, ConfigError
 from locoman.grid.app import summary
 from locoman.grid.cell import (
     RECORD_FILE,
@@ -252,3 +252,22 @@ def test_the_figures_and_the_summary_draw_from_records():
     table = summary_csv(records).splitlines()
     assert table[0].split(",") == list(SUMMARY_COLUMNS) and len(table) == 17
     assert "| AllKeyframe | 5 | 0.6 | converged |" in markdown_table(records)
+
+
+def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
+    params, tmp_path, monkeypatch
+):
+    """``benchmarks/figures_subset.py`` hands a parameters file with a smaller grid: the
+    cells must read that file, or they would run the full grid."""
+    import locoman.grid.report as report
+
+    launched = []
+    monkeypatch.setattr(
+        report,
+        "launch",
+        lambda scenario, figure, params_file: launched.append((scenario, figure, params_file)),
+    )
+    subset = tmp_path / "params.yaml"
+    with pytest.raises(ArtifactError, match="has no record"):
+        report.figures_scenario(params, "tiny", tmp_path / "out", tmp_path, params_file=subset)
+    assert launched == [("tiny", "fig5", subset), ("tiny", "fig6", subset)]

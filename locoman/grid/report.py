@@ -66,14 +66,18 @@ def _curve_csv(curve: np.ndarray) -> str:
 
 
 def figures_scenario(
-    cfg: RootCfg, scenario: str, out_dir: Path, data_dir: Path = Path("data")
+    cfg: RootCfg,
+    scenario: str,
+    out_dir: Path,
+    data_dir: Path = Path("data"),
+    params_file: Path = Path("params.yaml"),
 ) -> dict[str, Any]:
     """Run the grids of ``scenario`` (cells up to date are skipped), draw, summarise;
-    return the metrics."""
+    return the metrics. ``cfg`` is ``params_file``'s, which the cells read."""
     seconds = {}
     for figure in FIGURES:
         tic = time.perf_counter()
-        launch(scenario, figure)
+        launch(scenario, figure, params_file=params_file)
         seconds[figure] = time.perf_counter() - tic
     records = {figure: collect(cfg, scenario, figure, data_dir) for figure in FIGURES}
 

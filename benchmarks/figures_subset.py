@@ -1,0 +1,57 @@
+"""Paper A's Fig. 5 and Fig. 6 of one scenario on a subset of its Fig. 6 grid.
+
+Usage: python benchmarks/figures_subset.py <scenario> <out_dir> [--box-mass M ...]
+       [--initial-yaw Y ...]
+
+S1's and S2's full grids (``figures.grids``: 48 and 120 cells) take hours on 2 cores. This
+runs Fig. 5's four cells and Fig. 6's eight keyframe settings at the given box masses [kg]
+and initial yaws [rad] (default: the scenario's ``scenario.box_mass``, ``initial_yaw``), and
+draws them with the figures stage's code into ``out_dir`` (fig5.png, fig6.png, summary.csv,
+summary.md, metrics.json, timing.json). The cells are those of the full grid, under
+``data/<scenario>/grid/``: the full grid reuses them, and this reuses the full grid's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import yaml
+
+from locoman.config import load_params
+from locoman.errors import LocomanError
+from locoman.grid.report import figures_scenario
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario")
+    parser.add_argument("out_dir", type=Path)
+    parser.add_argument("--box-mass", type=float, nargs="+", help="[kg]")
+    parser.add_argument("--initial-yaw", type=float, nargs="+", help="[rad]")
+    args = parser.parse_args(argv)
+    cfg = load_params()
+    if args.scenario not in cfg.figures.grids:
+        print(f"figures.grids has no {args.scenario!r}", file=sys.stderr)
+        return 2
+    masses = args.box_mass or [cfg.scenario.box_mass]
+    yaws = args.initial_yaw or [cfg.scenario.initial_yaw]
+    raw = yaml.safe_load(Path("params.yaml").read_text())
+    raw["figures"]["grids"][args.scenario] |= {"box_mass": masses, "initial_yaw": yaws}
+    with tempfile.TemporaryDirectory() as tmp:
+        # The cells read this file; it differs from params.yaml in the grid only, which is
+        # not part of a cell's key, so the cells are the full grid's.
+        params = Path(tmp) / "params.yaml"
+        params.write_text(yaml.safe_dump(raw, sort_keys=False))
+        try:
+            figures_scenario(load_params(params), args.scenario, args.out_dir, params_file=params)
+        except LocomanError as exc:
+            print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)
+            return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
