@@ -105,7 +105,8 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
     panels = _cell_panels(records)
     cols = min(len(panels), 3)
     rows = math.ceil(len(panels) / cols)
-    fig = Figure(figsize=(4.2 * cols, 3.2 * rows + 0.8), layout="constrained")
+    # At least two panels wide: the title and the legend's row span that much.
+    fig = Figure(figsize=(4.2 * max(cols, 2), 3.2 * rows + 0.8), layout="constrained")
     fig.suptitle(title)
     axes = np.atleast_1d(fig.subplots(rows, cols, sharey=True, squeeze=False)).ravel()
     by_cell = {(r["box_mass"], r["initial_yaw"], r["run"]): r for r in records}
