@@ -5,4 +5,10 @@ Sub-packages are split by what the code is about: ``scene`` (robots, objects, sc
 pipeline stage family as they land.
 """
 
+from locoman.kernels import pin_kernels
+
+# Before NumPy, OpenBLAS or OpenCV load: the same kernels, so the same artifacts, on every
+# x86-64 CPU with AVX2.
+pin_kernels()
+
 __version__ = "0.1.0"

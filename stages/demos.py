@@ -9,6 +9,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import locoman  # noqa: F401  (first: it pins the CPU kernels before NumPy loads)
+
+# isort: split
 import numpy as np
 
 from locoman.artifacts import write_json_atomic, write_npz

@@ -9,6 +9,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import locoman  # noqa: F401  (first: it pins the CPU kernels before NumPy loads)
+
+# isort: split
 import numpy as np
 
 from locoman.artifacts import read_npz, write_metrics, write_text_atomic

@@ -1,0 +1,88 @@
+"""The CPU kernels are pinned before the numerical libraries load (locoman/kernels.py)."""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from locoman.kernels import cpu_flags, kernel_pins, pin_kernels
+
+REPO = Path(__file__).resolve().parents[1]
+NUMERICAL = {"numpy", "scipy", "cv2", "mujoco", "casadi", "pinocchio", "placo", "sklearn"}
+
+
+def test_pins_keep_an_avx512_cpu_at_avx2_kernels():
+    pins = kernel_pins("x86_64", {"avx2", "fma", "avx512f"})
+    assert pins["OPENBLAS_CORETYPE"] == "Haswell"
+    assert "AVX512_SKX" in pins["NPY_DISABLE_CPU_FEATURES"].split(",")
+    assert "AVX512_SKX" in pins["OPENCV_CPU_DISABLE"].split(",")
+    # OpenCV warns about names its CPU lacks: without AVX-512 it is left alone.
+    assert "OPENCV_CPU_DISABLE" not in kernel_pins("x86_64", {"avx2", "fma"})
+
+
+@pytest.mark.parametrize(
+    ("machine", "flags"), [("x86_64", {"avx", "sse4_2"}), ("aarch64", {"asimd"}), ("x86_64", set())]
+)
+def test_no_pin_where_the_avx2_kernel_would_be_an_illegal_instruction(machine, flags):
+    assert kernel_pins(machine, flags) == {}
+
+
+def test_a_variable_the_user_set_is_kept(monkeypatch):
+    monkeypatch.setattr("locoman.kernels.cpu_flags", lambda: {"avx2", "fma", "avx512f"})
+    monkeypatch.setattr("platform.machine", lambda: "x86_64")
+    env = {"OPENBLAS_CORETYPE": "Zen"}
+    added = pin_kernels(env)
+    assert env["OPENBLAS_CORETYPE"] == "Zen" and "OPENBLAS_CORETYPE" not in added
+    assert env["NPY_DISABLE_CPU_FEATURES"] == added["NPY_DISABLE_CPU_FEATURES"]
+
+
+def test_cpu_flags_read_proc_cpuinfo(tmp_path):
+    info = tmp_path / "cpuinfo"
+    info.write_text("processor\t: 0\nflags\t\t: fpu sse2 avx2 fma\nbugs\t: x\n")
+    assert cpu_flags(info) == {"fpu", "sse2", "avx2", "fma"}
+    assert cpu_flags(tmp_path / "missing") == set()
+
+
+@pytest.mark.skipif(
+    not kernel_pins("x86_64", cpu_flags()), reason="this CPU has no AVX2: nothing is pinned"
+)
+def test_importing_locoman_first_loads_openblas_with_the_pinned_kernel():
+    code = (
+        "import locoman, numpy, scipy.linalg, json, os\n"
+        "from threadpoolctl import threadpool_info\n"
+        "print(json.dumps([os.environ.get('OPENBLAS_CORETYPE'),"
+        " [i.get('architecture') for i in threadpool_info() if i['internal_api'] == 'openblas']]))"
+    )
+    pins = kernel_pins("x86_64", {"avx2", "fma", "avx512f"})
+    env = {k: v for k, v in os.environ.items() if k not in pins}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    coretype, architectures = json.loads(out.stdout)
+    assert coretype == "Haswell"
+    assert len(architectures) >= 2 and set(architectures) == {"Haswell"}  # NumPy's, SciPy's
+
+
+@pytest.mark.parametrize("script", sorted((REPO / "stages").glob("*.py")), ids=lambda p: p.name)
+def test_every_stage_imports_locoman_before_a_numerical_library(script):
+    """A stage that loaded NumPy first would run with the CPU's own kernels."""
+    first: dict[str, int] = {}
+    for node in ast.parse(script.read_text()).body:
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names = [node.module]
+        for name in names:
+            top = name.split(".")[0]
+            key = "locoman" if top == "locoman" else top if top in NUMERICAL else None
+            if key:
+                first.setdefault(key, node.lineno)
+    assert "locoman" in first
+    assert all(first["locoman"] < line for key, line in first.items() if key != "locoman"), first
