@@ -1,13 +1,14 @@
 """The numerical libraries' CPU kernels, pinned to one instruction-set level.
 
-OpenBLAS (NumPy's, SciPy's, CasADi's), NumPy and OpenCV pick their kernels when they load,
-by what the CPU offers: AVX-512 kernels where it has them, AVX2 ones where not. Those round
-differently in the last bits, and the differences grow through the pipeline (a scene's
-initial state, then every stage after it): a machine with AVX-512 wrote other artifacts
-than one without, from the same parameters. :func:`pin_kernels` sets, before those
-libraries load, the variables that keep them at their AVX2 kernels on every x86-64 CPU
-with AVX2. It runs when ``locoman`` is imported: a stage imports ``locoman`` before NumPy
-(``tests/test_kernels.py`` checks). A variable the user set is left as it is.
+OpenBLAS (NumPy's and SciPy's; CasADi's is built for one core type), NumPy and OpenCV pick
+their kernels when they load, by what the CPU offers: AVX-512 kernels where it has them,
+AVX2 ones where not. Those round differently in the last bits, and the differences grow
+through the pipeline (a scene's initial state, then every stage after it): a machine with
+AVX-512 wrote other artifacts than one without, from the same parameters.
+:func:`pin_kernels` sets, before those libraries load, the variables that keep them at their
+AVX2 kernels on every x86-64 CPU with AVX2. It runs when ``locoman`` is imported: a stage
+imports ``locoman`` before NumPy (``tests/test_kernels.py`` checks). A variable the user set
+is left as it is.
 """
 
 from __future__ import annotations
