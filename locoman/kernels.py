@@ -19,10 +19,14 @@ from collections.abc import MutableMapping
 from pathlib import Path
 
 # NumPy's and OpenCV's names of the AVX-512 extensions their dispatchers know.
-_NUMPY_AVX512 = "AVX512F AVX512CD AVX512_KNL AVX512_KNM AVX512_SKX AVX512_CLX AVX512_CNL"
-_NUMPY_AVX512 += " AVX512_ICL AVX512_SPR"
-_OPENCV_AVX512 = "AVX512_COMMON AVX512_SKX AVX512_KNL AVX512_KNM AVX512_CNL AVX512_CLX"
-_OPENCV_AVX512 += " AVX512_ICL"
+_NUMPY_AVX512 = (
+    "AVX512F", "AVX512CD", "AVX512_KNL", "AVX512_KNM", "AVX512_SKX", "AVX512_CLX", "AVX512_CNL",
+    "AVX512_ICL", "AVX512_SPR",
+)  # fmt: skip
+_OPENCV_AVX512 = (
+    "AVX512_COMMON", "AVX512_SKX", "AVX512_KNL", "AVX512_KNM", "AVX512_CNL", "AVX512_CLX",
+    "AVX512_ICL",
+)  # fmt: skip
 
 
 def cpu_flags(cpuinfo: Path = Path("/proc/cpuinfo")) -> set[str]:
@@ -43,10 +47,10 @@ def kernel_pins(machine: str, flags: set[str]) -> dict[str, str]:
         # OpenBLAS's DYNAMIC_ARCH family; SkylakeX and Cooperlake are its AVX-512 ones.
         "OPENBLAS_CORETYPE": "Haswell",
         # NumPy's dispatched loops (sums; exp, log, trig through SVML) above AVX2.
-        "NPY_DISABLE_CPU_FEATURES": _NUMPY_AVX512.replace(" ", ","),
+        "NPY_DISABLE_CPU_FEATURES": ",".join(_NUMPY_AVX512),
     }
     if "avx512f" in flags:  # OpenCV warns about every name its CPU does not have
-        pins["OPENCV_CPU_DISABLE"] = _OPENCV_AVX512.replace(" ", ",")
+        pins["OPENCV_CPU_DISABLE"] = ",".join(_OPENCV_AVX512)
     return pins
 
 
