@@ -75,6 +75,22 @@ def test_a_sphere_with_nonnegative_penetration_is_outside_the_box(local, radius)
         assert float(p(local)) < 0.0
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.tuples(coordinate, coordinate, coordinate), st.floats(0.0, 0.1))
+def test_a_touching_pair_keeps_the_sphere_out_with_the_least_margin(local, radius):
+    """A holding forearm against its basket (``touching``): the margin is ln(3) times the
+    smoothing, the least that still keeps the sphere out of the box (up to the 1 mm of
+    |x|'s smoothing), and p is the full margin's shifted by the difference."""
+    local = np.array(local)
+    frame = (ca.DM.zeros(3), ca.DM.eye(3), ca.DM(HALF))
+    touching = SphereBox(ca.DM(local), radius, *frame, touching=True).penetration(CFG)
+    full = SphereBox(ca.DM(local), radius, *frame).penetration(CFG)
+    least = np.log(3.0) * CFG.smoothing_m
+    assert float(touching - full) == pytest.approx((CFG.margin_m - least) / CFG.length_m)
+    if float(touching) >= 0.0:
+        assert _signed_distance(local) >= radius - 1e-3
+
+
 def test_two_spheres_follow_the_papers_scaled_penetration():
     a, b = np.zeros(3), np.array([0.3, 0.0, 0.4])
     p = sphere_sphere_penetration(ca.DM(a), ca.DM(b), 0.25)

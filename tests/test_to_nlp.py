@@ -55,13 +55,22 @@ def _reference(groups: list[StageGroup]):
     return x, p, ca.vertcat(*g), f, ca.vertcat(*r)
 
 
-@pytest.mark.parametrize(("compiled", "curvature"), [(False, True), (True, True), (False, False)])
-def test_assembled_derivatives_match_casadi(compiled: bool, curvature: bool, tmp_path) -> None:
+@pytest.mark.parametrize(
+    ("compiled", "curvature", "residuals"),
+    [(False, True, False), (True, True, False), (False, False, False), (False, True, True)],
+)
+def test_assembled_derivatives_match_casadi(
+    compiled: bool, curvature: bool, residuals: bool, tmp_path
+) -> None:
     """Without ``curvature`` (the TO's Gauss-Newton default) the Hessian leaves out the
-    constraints' second derivatives lambda' nabla^2 g, and only those."""
+    constraints' second derivatives lambda' nabla^2 g; without ``residuals`` the penalties'
+    r nabla^2 r; with both (the exact phase) it is the Lagrangian's exact Hessian."""
     if compiled and shutil.which("gcc") is None:
         pytest.skip("no C compiler")
-    groups = [dataclasses.replace(g, constraint_curvature=curvature) for g in _groups()]
+    groups = [
+        dataclasses.replace(g, constraint_curvature=curvature, residual_curvature=residuals)
+        for g in _groups()
+    ]
     cache = tmp_path if compiled else None
     nlp = StageNLP(WIDTH, NODES, PARAMS, THETA, groups, {"print_level": 0, "sb": "yes"}, cache)
     x, p, g, f_smooth, r = _reference(groups)
@@ -75,7 +84,9 @@ def test_assembled_derivatives_match_casadi(compiled: bool, curvature: bool, tmp
     jac_r = ca.jacobian(r, x)
     constraints = ca.dot(lam_g, g) if curvature else 0.0
     gauss_newton = ca.hessian(lam_f * f_smooth + constraints, x)[0] + 2 * lam_f * (jac_r.T @ jac_r)
-    ref_hess = ca.Function("h", [x, p, lam_f, lam_g], [gauss_newton])(xv, pv, lfv, lgv)
+    exact = ca.hessian(lam_f * f + constraints, x)[0]
+    reference = exact if residuals else gauss_newton
+    ref_hess = ca.Function("h", [x, p, lam_f, lam_g], [reference])(xv, pv, lfv, lgv)
     g_val, jac = nlp.oracles["jac_g"](xv, pv)
     f_val, grad = nlp.oracles["grad_f"](xv, pv)
     hess = nlp.oracles["hess_lag"](xv, pv, lfv, lgv)

@@ -402,8 +402,10 @@ def test_a_carried_box_dipped_over_a_tables_rim_pays_the_object_environment_pena
 def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     """S1's right forearm went 5 cm into the held basket's floor: the TO saw a solid box,
     whose holding arm it does not check (the palm is on its face). A basket is its floor
-    and walls (``parts``), and an arm holding it keeps its forearm out of them; an arm
-    holding a solid box or gripping a trolley's handle is not checked, a free one is."""
+    and walls (``parts``); an arm holding it keeps its forearm out of them, touching
+    allowed (with the full margin, the forearm beside the wall its palm presses sat on the
+    penalty's boundary); an arm holding a solid box or gripping a trolley's handle is not
+    checked; a free one is, with the margin."""
     from locoman.scene.objects import object_geometry
 
     size = [0.3, 0.4, 0.22]
@@ -433,12 +435,19 @@ def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     palm = [ca.SX.zeros(3)] * 3
     at_rest = (ObjectMode(True, Surface()),) * 3
 
+    def mode(j: int, holding: bool) -> NodeMode:
+        return NodeMode((True, True), (j if holding else None, None), at_rest)
+
     def checked(j: int, holding: bool) -> int:
-        mode = NodeMode((True, True), (j if holding else None, None), at_rest)
-        return len(builder._arm_spheres(z, mode, 0, j, palm))
+        return len(builder._arm_spheres(z, mode(j, holding), 0, j, palm))
+
+    def held_pairs(j: int) -> list:
+        return builder._holding_forearms(z, mode(j, holding=True), j)
 
     assert forearm > 0
-    assert checked(0, holding=True) == forearm  # the basket's floor and walls
-    assert checked(1, holding=True) == 0  # a solid box: the palm on its face
-    assert checked(2, holding=True) == 0  # a gripped handle
+    basket_pairs = held_pairs(0)  # the basket's floor and walls, touching allowed
+    assert len(basket_pairs) == 5 * forearm and all(pair.touching for pair in basket_pairs)
+    assert checked(0, holding=True) == 0
+    assert checked(1, holding=True) == 0 and held_pairs(1) == []  # a solid box: palm on its face
+    assert checked(2, holding=True) == 0 and held_pairs(2) == []  # a gripped handle
     assert checked(0, holding=False) == 3 + forearm and checked(1, holding=False) == 3

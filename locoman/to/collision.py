@@ -248,12 +248,19 @@ def box_clearance(
 
 
 def sphere_box_penetration(
-    centre_sphere: ca.SX, radius: float, box_centre: ca.SX, R: ca.SX, half: ca.SX, cfg
+    centre_sphere: ca.SX,
+    radius: float,
+    box_centre: ca.SX,
+    R: ca.SX,
+    half: ca.SX,
+    cfg,
+    margin: ca.SX | float | None = None,
 ) -> ca.SX:
     """(11) for a sphere (radius 0: a point) and a box: p = (c - r - margin) / L, c the
-    clearance of its centre."""
+    clearance of its centre; ``margin`` [m] in place of ``cfg.margin_m``."""
     clearance = box_clearance(centre_sphere, box_centre, R, half, cfg.smoothing_m)
-    return (clearance - radius - cfg.margin_m) / cfg.length_m
+    margin = cfg.margin_m if margin is None else margin
+    return (clearance - radius - margin) / cfg.length_m
 
 
 def sphere_ellipsoid_penetration(
@@ -278,11 +285,13 @@ class SphereBox:
     box_centre: ca.SX  # (3,) world [m]
     R: ca.SX  # the box's axes
     half: ca.SX  # (3,) half sizes [m]
+    touching: bool = False  # kept out of the box only: its margin the least, ln(3) smoothing
 
     def penetration(self, cfg) -> ca.SX:
         """p of the true box (:func:`sphere_box_penetration`)."""
+        margin = np.log(3.0) * cfg.smoothing_m if self.touching else cfg.margin_m
         return sphere_box_penetration(
-            self.centre, self.radius, self.box_centre, self.R, self.half, cfg
+            self.centre, self.radius, self.box_centre, self.R, self.half, cfg, margin
         )
 
     def stand_in(self, cfg) -> ca.SX:

@@ -55,6 +55,11 @@ class StageGroup:
         upper: (rows,) upper bounds of g.
         constraint_curvature: The Hessian of the Lagrangian includes lambda' nabla^2 g of
             this group; False leaves it out (a Gauss-Newton Hessian for its constraints).
+        residual_curvature: The Hessian of ||r||^2 is exact, 2 (J_r' J_r + sum_i r_i
+            nabla^2 r_i); False: its Gauss-Newton part 2 J_r' J_r. An active penalty (12)
+            has r != 0 at the optimum, so without its curvature the Newton step is not
+            Newton's there: IPOPT converges linearly (S2's last exact iterations: the dual
+            infeasibility x 0.89 per iteration) or crawls (S1).
     """
 
     function: ca.Function
@@ -62,6 +67,7 @@ class StageGroup:
     lower: np.ndarray
     upper: np.ndarray
     constraint_curvature: bool = True
+    residual_curvature: bool = False
 
     @property
     def rows(self) -> int:
@@ -117,8 +123,8 @@ class NLPResult:
 
 def stage_derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     """Per-stage (g, l), (g, nz(J)), (l, grad l), nz(triu H) functions of one group; l is
-    the whole cost, H the exact Hessian of the Lagrangian but for the residuals' Gauss-Newton
-    part."""
+    the whole cost, H the Hessian of the Lagrangian with the curvatures the group asks for
+    (:attr:`StageGroup.constraint_curvature`, :attr:`StageGroup.residual_curvature`)."""
     fn, span = group.function, group.span
     zs = [ca.SX.sym(f"z{i}", width) for i in range(span)]
     ps = [ca.SX.sym(f"p{i}", fn.size1_in(span)) for i in range(span)]
@@ -130,9 +136,13 @@ def stage_derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     args = [*zs, *ps, theta]
     jac = ca.jacobian(g, zz)
     grad = ca.densify(ca.gradient(cost, zz))
-    jac_r = ca.jacobian(residuals, zz)
     curvature = ca.dot(lam, g) if group.constraint_curvature else 0.0
-    hess = ca.triu(ca.hessian(sigma * smooth + curvature, zz)[0] + 2.0 * sigma * (jac_r.T @ jac_r))
+    if group.residual_curvature:
+        hess = ca.triu(ca.hessian(sigma * cost + curvature, zz)[0])
+    else:
+        jac_r = ca.jacobian(residuals, zz)
+        gauss_newton = 2.0 * sigma * (jac_r.T @ jac_r)
+        hess = ca.triu(ca.hessian(sigma * smooth + curvature, zz)[0] + gauss_newton)
     name = fn.name()
     return (
         ca.Function(f"{name}_val", args, [g, cost]),

@@ -85,6 +85,12 @@ def _smallest_half_size(obj: ObjectModel) -> float:
     return float(min(np.min(obj.half_extents), obj.com[2]))
 
 
+def _pairs(spheres: list[tuple[ca.SX, float]], boxes: list[tuple]) -> list[SphereBox]:
+    """Each sphere (centre [m], radius [m]) against each box (centre [m], rotation, half
+    sizes [m]), box by box."""
+    return [SphereBox(c, r, *box) for box in boxes for c, r in spheres]
+
+
 @dataclasses.dataclass(frozen=True)
 class ObjectMode:
     """One object's state of contact at a node.
@@ -286,12 +292,14 @@ class StageBuilder:
         curvature: bool = True,
     ) -> StageGroup:
         """The stage group of the given stages, which share ``(mode, mode_next, last)``;
-        without ``curvature`` the constraints' second derivatives stay out of the Hessian."""
+        without ``curvature`` the constraints' and the penalties' second derivatives stay
+        out of the Hessian (Gauss-Newton)."""
         key = (mode, mode_next, last)
         if key not in self._cache:
             self._cache[key] = self._stage(mode, mode_next, last, f"stage_{len(self._cache)}")
         fn, lower, upper = self._cache[key]
-        return StageGroup(fn, np.asarray(stages, dtype=int), lower, upper, curvature)
+        stages = np.asarray(stages, dtype=int)
+        return StageGroup(fn, stages, lower, upper, curvature, residual_curvature=curvature)
 
     def kinematics_group(self, nodes: np.ndarray, curvature: bool = True) -> StageGroup:
         """The node constraint tying the lifted kinematics to q, v at ``nodes``; without
@@ -601,17 +609,28 @@ class StageBuilder:
     def _arm_spheres(
         self, z: ca.SX, mode: NodeMode, i: int, j: int, palm: list[tuple[ca.SX, float]]
     ) -> list[tuple[ca.SX, float]]:
-        """The spheres of arm i kept out of object j (``hands_object``): a free palm; a
-        solid box's own corners catch a forearm, while a trolley's thin handle bar passes
-        between the palms and the body points, so an open object checks the forearm too.
-        A hand holding the object: a hand pressing an open object's wall keeps its forearm
-        beside it (S1's basket: the forearm went 5 cm into its floor); a gripped handle
-        sits in the hand, and a solid box's face is the palm's contact (the tiny and S2
-        boxes: not checked, which leaves their solved structure as it was)."""
+        """The spheres of arm i kept out of all of object j's boxes (``hands_object``) while
+        its hand does not touch it: the palm; a solid box's own corners catch a forearm,
+        while a trolley's thin handle bar passes between the palms and the body points, so
+        an open object checks the forearm too."""
+        if mode.hands[i] == j:
+            return []
+        return palm if self.objects[j].solid else palm + self._forearm(z, i)
+
+    def _holding_forearms(self, z: ca.SX, mode: NodeMode, j: int) -> list[SphereBox]:
+        """The forearms of the hands holding open object j against its parts, touching
+        allowed (the least margin, ``SphereBox.touching``): a hand pressing a basket's wall
+        keeps its forearm out of the basket (as a solid box it went 5 cm into its floor).
+        The palm's centre is 5.6 cm off the wall's outer face and the forearm's spheres
+        have a 4 cm radius: with the full margin, the forearm sat on the penalty's
+        boundary all through the holding phase. A gripped handle sits in the hand, and a
+        solid box's face is the palm's contact: not checked (the tiny and S2 boxes)."""
         obj = self.objects[j]
-        if mode.hands[i] != j:
-            return palm if obj.solid else palm + self._forearm(z, i)
-        return [] if obj.solid or self._prehensile(j) else self._forearm(z, i)
+        if obj.solid or self._prehensile(j):
+            return []
+        forearms = [s for i in range(2) if mode.hands[i] == j for s in self._forearm(z, i)]
+        parts = self._object_parts(z, j, obj.parts)
+        return [dataclasses.replace(pair, touching=True) for pair in _pairs(forearms, parts)]
 
     def collision_terms(self, z: ca.SX, mode: NodeMode) -> CollisionTerms:
         """The collision terms at node k, each kind under its treatment: the trunk's and the
@@ -633,6 +652,7 @@ class StageBuilder:
             # overhangs a shelf, they went into its floor.
             hands = [s for i in range(2) for s in self._arm_spheres(z, mode, i, j, palms[i])]
             hands += [s for link in ELBOW_LINKS for s in self._link_spheres(z, link)]
+            arms = _pairs(hands, boxes) + self._holding_forearms(z, mode, j)
             # The feet are kept off an object on the floor (Sec. V-A, S1: the box stepped
             # onto; S2: a trolley's wheels), but for one whose sole rests on its top.
             feet_j = [
@@ -641,15 +661,14 @@ class StageBuilder:
                 if j in mode.underfoot and mode.feet_on[i] != j
                 for s in self._foot_spheres(z, i)
             ]
-            for kind, spheres, kind_boxes in (
-                ("object_body", body, boxes),
-                ("hands_object", hands, boxes),
-                ("legs_object", legs, boxes),
-                ("feet_object", feet_j, under_feet),
+            for kind, pairs in (
+                ("object_body", _pairs(body, boxes)),
+                ("hands_object", arms),
+                ("legs_object", _pairs(legs, boxes)),
+                ("feet_object", _pairs(feet_j, under_feet)),
             ):
                 treatment = getattr(cfg, kind)
                 if treatment != "off":
-                    pairs = [SphereBox(c, r, *box) for box in kind_boxes for c, r in spheres]
                     terms.add(treatment, pairs, cfg)
         if cfg.object_environment != "off":
             for j in range(len(self.objects)):

@@ -129,11 +129,17 @@ class SolverCfg:
         hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
             ``gauss_newton`` (default): the costs' exact Hessian, the penalties' Gauss-Newton
             one, and none of the constraints' second derivatives; ``exact``: with the
-            constraints' lambda' nabla^2 g too. Both converge to the same KKT points (the
-            Hessian is not in the KKT conditions); on ``tiny`` the exact one is indefinite
+            constraints' lambda' nabla^2 g and the stage penalties' r nabla^2 r too (the
+            self-collision penalties stay Gauss-Newton). Both converge to the same KKT
+            points (the Hessian is not in the KKT conditions), but only the exact one
+            converges fast where penalties are active at the optimum: S1's exact phase with
+            the penalties' Gauss-Newton Hessian crawled (1000 iterations, scaled dual
+            infeasibility 1e-3 .. 1e-2, regularised in every iteration), and from where it
+            stopped the exact one converged in 107. On ``tiny`` the exact one is indefinite
             (the products f dt and v dt of (1), the kinematics' trigonometry), IPOPT
             regularised it in nearly every iteration (2.3 factorisations each) and took 148
-            iterations, 24 s, where Gauss-Newton takes 58, 4.6 s, to the same cost.
+            iterations, 24 s, where Gauss-Newton takes 58, 4.6 s, to the same cost
+            (measured before the penalties' curvature was in it).
         exact_after_iterations: With the ``gauss_newton`` Hessian: a solve that has not
             converged after this many iterations goes on from its primal-dual point with the
             ``exact`` one (built, and compiled, the first time it is needed), up to
@@ -680,7 +686,8 @@ class TrajectoryOptimizer:
         self._exact_nlp: StageNLP | None = self.nlp if exact else None
 
     def _build_nlp(self, curvature: bool, limits: dict) -> StageNLP:
-        """The NLP with the constraints' curvature in its Hessian or not (Gauss-Newton),
+        """The NLP with the constraints' and penalties' curvature in its Hessian or not
+        (Gauss-Newton),
         compiled or loaded from the cache."""
         builder, n = self._builder, self.schedule.nodes
         groups = [
