@@ -51,13 +51,6 @@ def workdir(repo, tmp_path_factory) -> Path:
         if src.is_file() and not rel.startswith("data/"):
             (dst / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(src, dst / rel)
-    # gcc -O0 compiles the TO five times faster than the pipeline's -O1 (README, compile
-    # table) for a solve 20 % slower: the budget of `make test` on a fresh clone is the
-    # compile's. The test is about the stages running and caching, not the flags.
-    params = dst / "params.yaml"
-    flags = "    compile_flags:\n    - -O1\n"
-    assert flags in params.read_text(), "params.yaml's solver.compile_flags moved"
-    params.write_text(params.read_text().replace(flags, "    compile_flags:\n    - -O0\n"))
     assert _run(["git", "init", "-q"], dst).returncode == 0
     return dst
 

@@ -83,6 +83,8 @@ class CollisionCfg:
             box; a trolley's chassis and handle frame).
         hands_object: Between each palm while it does not touch the object, and the
             object; a non-solid object's parts check the forearms too; the elbows always.
+            The forearms of the hands holding an open object (a basket) are kept out of
+            its parts with the least margin (``SphereBox.touching``).
         legs_object: Between the legs (the thighs' and shins' capsule spheres) and each
             object's boxes.
             As the homotopy (13) (the paper's choice for S2's legs against the trolley)

@@ -104,7 +104,7 @@ def _build(unit: Unit, library: Path, compiler: str, flags: Sequence[str]) -> No
 def compile_units(
     batches: Sequence[Sequence[ca.Function]],
     directory: Path,
-    flags: Sequence[str] = ("-O1",),
+    flags: Sequence[str] = ("-O0",),
     jobs: int | None = None,
 ) -> dict[str, ca.Function]:
     """Each batch of functions as one compiled library, loaded from ``directory`` when a

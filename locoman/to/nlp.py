@@ -180,7 +180,7 @@ class StageNLP:
         groups: Sequence[StageGroup],
         ipopt: dict,
         cache_dir: Path | None = None,
-        compile_flags: Sequence[str] = ("-O1",),
+        compile_flags: Sequence[str] = ("-O0",),
     ) -> None:
         tic = time.perf_counter()
         covered = np.sort(np.concatenate([g.stages for g in groups if g.span == 2]))

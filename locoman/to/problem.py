@@ -617,8 +617,10 @@ class StageBuilder:
             return []
         return palm if self.objects[j].solid else palm + self._forearm(z, i)
 
-    def _holding_forearms(self, z: ca.SX, mode: NodeMode, j: int) -> list[SphereBox]:
-        """The forearms of the hands holding open object j against its parts, touching
+    def _holding_forearms(
+        self, z: ca.SX, mode: NodeMode, j: int, parts: list[tuple]
+    ) -> list[SphereBox]:
+        """The forearms of the hands holding open object j against its ``parts``, touching
         allowed (the least margin, ``SphereBox.touching``): a hand pressing a basket's wall
         keeps its forearm out of the basket (as a solid box it went 5 cm into its floor).
         The palm's centre is 5.6 cm off the wall's outer face and the forearm's spheres
@@ -629,7 +631,6 @@ class StageBuilder:
         if obj.solid or self._prehensile(j):
             return []
         forearms = [s for i in range(2) if mode.hands[i] == j for s in self._forearm(z, i)]
-        parts = self._object_parts(z, j, obj.parts)
         return [dataclasses.replace(pair, touching=True) for pair in _pairs(forearms, parts)]
 
     def collision_terms(self, z: ca.SX, mode: NodeMode) -> CollisionTerms:
@@ -652,7 +653,7 @@ class StageBuilder:
             # overhangs a shelf, they went into its floor.
             hands = [s for i in range(2) for s in self._arm_spheres(z, mode, i, j, palms[i])]
             hands += [s for link in ELBOW_LINKS for s in self._link_spheres(z, link)]
-            arms = _pairs(hands, boxes) + self._holding_forearms(z, mode, j)
+            arms = _pairs(hands, boxes) + self._holding_forearms(z, mode, j, boxes)
             # The feet are kept off an object on the floor (Sec. V-A, S1: the box stepped
             # onto; S2: a trolley's wheels), but for one whose sole rests on its top.
             feet_j = [
