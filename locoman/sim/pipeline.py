@@ -33,6 +33,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_scene_model
 from locoman.scene.rotations import rpy_to_matrix
+from locoman.sim import camera
 from locoman.sim.evaluate import (
     dynamics_residuals,
     friction_violation,
@@ -52,7 +53,7 @@ VIDEO_FPS = 30.0  # [1/s]
 VIDEO_SIZE = (640, 480)  # width, height [px]
 
 
-def _options() -> mujoco.MjvOption:
+def view_option() -> mujoco.MjvOption:
     """The G1's visual meshes, not its collision primitives."""
     option = mujoco.MjvOption()
     option.geomgroup[:] = 1
@@ -68,16 +69,14 @@ def _render(
     names: list[str],
     object_q: np.ndarray,
     label: str,
+    bearing: float,
 ) -> np.ndarray:
     """The scene with the G1 at ``q`` (35,) and the objects ``names`` at ``object_q``
-    (M, 6), seen from the robot's front left, ``label`` written in its top left corner."""
+    (M, 6), seen from ``bearing`` [deg] off the robot's heading (:func:`camera.follow`),
+    ``label`` written in its top left corner."""
     data.qpos[:] = scene_qpos(model, q, names, object_q)
     mujoco.mj_forward(model, data)
-    cam = mujoco.MjvCamera()
-    cam.lookat[:] = q[:3] + np.array([0.0, 0.0, -0.2])
-    cam.distance, cam.elevation = 3.0, -20.0
-    cam.azimuth = float(np.degrees(q[5])) + 180.0 - 50.0
-    renderer.update_scene(data, camera=cam, scene_option=_options())
+    renderer.update_scene(data, camera=camera.follow(q, bearing), scene_option=view_option())
     image = renderer.render().copy()
     # White on the image's top band (black was unreadable on the letterbox).
     cv2.putText(
@@ -86,17 +85,33 @@ def _render(
     return image
 
 
-def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -> np.ndarray:
-    """Renders of evenly spaced nodes, two rows, each seen from the robot's front left."""
+def filmstrip_nodes(traj: dict[str, np.ndarray], frames: int) -> np.ndarray:
+    """The ``frames`` evenly spaced nodes the filmstrip shows."""
+    return np.linspace(0, len(traj["q"]) - 1, frames).round().astype(int)
+
+
+def view_bearing(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -> float:
+    """The camera's bearing [deg] for this motion: the side from which the scene hides the
+    least of the robot at the filmstrip's nodes (:func:`camera.best_bearing`)."""
+    names = object_names(traj)
+    nodes = filmstrip_nodes(traj, frames)
+    states = [scene_qpos(model, traj["q"][k], names, traj["object_q"][k]) for k in nodes]
+    return camera.best_bearing(model, view_option(), states, [traj["q"][k] for k in nodes])
+
+
+def filmstrip(
+    model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int, bearing: float
+) -> np.ndarray:
+    """Renders of evenly spaced nodes, two rows, seen from ``bearing`` [deg]."""
     data = mujoco.MjData(model)
-    nodes = np.linspace(0, len(traj["q"]) - 1, frames).round().astype(int)
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
     names = object_names(traj)
     tiles = []
     with mujoco.Renderer(model, height=TILE, width=TILE) as renderer:
-        for k in nodes:
+        for k in filmstrip_nodes(traj, frames):
             label = f"t={time[k]:.2f}s {traj['phase'][k]}"
-            image = _render(renderer, model, data, traj["q"][k], names, traj["object_q"][k], label)
+            q, object_q = traj["q"][k], traj["object_q"][k]
+            image = _render(renderer, model, data, q, names, object_q, label, bearing)
             tiles.append(fit_tile(image, TILE)[0])
     while len(tiles) % 2:
         tiles.append(np.full_like(tiles[0], 255))
@@ -105,10 +120,15 @@ def filmstrip(model: mujoco.MjModel, traj: dict[str, np.ndarray], frames: int) -
 
 
 def motion_frames(
-    model: mujoco.MjModel, traj: dict[str, np.ndarray], fps: float, size: tuple[int, int]
+    model: mujoco.MjModel,
+    traj: dict[str, np.ndarray],
+    fps: float,
+    size: tuple[int, int],
+    bearing: float,
 ) -> Iterator[np.ndarray]:
     """Frames (height, width, 3) of the motion in real time at ``fps`` [1/s]: robot and object
-    interpolated linearly between the nodes, the camera following the robot."""
+    interpolated linearly between the nodes, the camera following the robot from ``bearing``
+    [deg] off its heading."""
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
     names = object_names(traj)
     width, height = size
@@ -118,7 +138,8 @@ def motion_frames(
             q = np.array([np.interp(t, time, c) for c in traj["q"].T])
             o = np.apply_along_axis(lambda c, t=t: np.interp(t, time, c), 0, traj["object_q"])
             k = min(int(np.searchsorted(time, t, side="right")), len(time) - 1)
-            yield _render(renderer, model, data, q, names, o, f"t={t:.2f}s {traj['phase'][k]}")
+            label = f"t={t:.2f}s {traj['phase'][k]}"
+            yield _render(renderer, model, data, q, names, o, label, bearing)
 
 
 def pose_matrix(pose: np.ndarray) -> np.ndarray:
@@ -272,9 +293,10 @@ def evaluate_scenario(
         writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
     write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
     if media:
-        strip = filmstrip(model, traj, cfg.filmstrip_frames)
+        bearing = view_bearing(model, traj, cfg.filmstrip_frames)
+        strip = filmstrip(model, traj, cfg.filmstrip_frames, bearing)
         write_png(out_dir / "plots" / "filmstrip.png", strip)
-        video = motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE)
+        video = motion_frames(model, traj, VIDEO_FPS, VIDEO_SIZE, bearing)
         write_mp4(out_dir / VIDEO_FILE, video, VIDEO_FPS)
     write_metrics(out_dir, metrics)
     return metrics
