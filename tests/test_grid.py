@@ -175,6 +175,7 @@ def test_figures_config_is_checked(params):
     from locoman.config.load import validate
 
     raw = json.loads(json.dumps(dataclasses.asdict(params), default=str))
+    raw["solve"]["scenarios"] = ["tiny"]
     raw["figures"]["scenarios"] = ["s1_basket"]
     with pytest.raises(ConfigError, match=r"figures.scenarios.*not a solve scenario"):
         validate(raw)

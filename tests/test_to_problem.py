@@ -442,7 +442,8 @@ def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
         return len(builder._arm_spheres(z, mode(j, holding), 0, j, palm))
 
     def held_pairs(j: int) -> list:
-        return builder._holding_forearms(z, mode(j, holding=True), j)
+        parts = builder._object_parts(z, j, builder.objects[j].parts)
+        return builder._holding_forearms(z, mode(j, holding=True), j, parts)
 
     assert forearm > 0
     basket_pairs = held_pairs(0)  # the basket's floor and walls, touching allowed
