@@ -13,10 +13,10 @@ export PATH := $(abspath $(BIN)):$(PATH)
 
 setup: $(STAMP)
 
-# open3d links against libusb-1.0 and the TO compiles C with gcc, which fresh Debian images
-# may lack; everything else is on PyPI.
+# MuJoCo renders off-screen through libEGL and the TO compiles C with gcc, which fresh Debian
+# images may lack; everything else is on PyPI.
 $(STAMP): pyproject.toml requirements.lock
-	@(ldconfig -p | grep -q 'libusb-1.0.so.0' && command -v gcc >/dev/null) || bash .ci/install-system-deps
+	@(ldconfig -p | grep -q 'libEGL.so.1' && command -v gcc >/dev/null) || bash .ci/install-system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev]"

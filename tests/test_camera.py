@@ -51,3 +51,11 @@ def test_a_wall_on_one_side_of_the_robot_turns_the_camera_to_the_other(tiny_scen
     wall.quat = [np.cos(q[5] / 2), 0.0, 0.0, np.sin(q[5] / 2)]
     bearing = camera.best_bearing(spec.compile(), view_option(), [qpos], [q])
     assert np.sign(bearing) == -side
+
+
+def test_the_robot_alone_needs_a_hidden_geom_group(tiny_scene):
+    model = load_scene_spec(tiny_scene).compile()
+    option = mujoco.MjvOption()
+    option.geomgroup[:] = 1
+    with pytest.raises(ValueError, match="hides at least one geom group"):
+        camera.robot_alone(model, option)

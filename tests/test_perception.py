@@ -10,7 +10,13 @@ from hypothesis import strategies as st
 from locoman.config.perception import CloudsCfg, DepthErrorCfg, FluxCfg, GenerateCfg
 from locoman.errors import ModelError, SceneError
 from locoman.perception import camera, demonstrator
-from locoman.perception.clouds import chamfer, lift_keypoints, object_cloud
+from locoman.perception.clouds import (
+    chamfer,
+    lift_keypoints,
+    object_cloud,
+    remove_statistical_outliers,
+    voxel_down_sample,
+)
 from locoman.perception.depth import depth_error_model
 from locoman.perception.flux import load_flux_pipeline
 from locoman.perception.prompts import augment_prompt, gerund
@@ -188,6 +194,37 @@ def test_depth_error_model_scales_adds_noise_and_drops_edges():
     assert np.all(out[20:40, 28:32] == 0.0)  # the step at column 30 is dropped, 2 px around
     noisy = depth_error_model(depth, DepthErrorCfg(1.0, 0.01, 0, 0.05), np.random.default_rng(0))
     assert np.std(noisy[45:, :] - 2.0) == pytest.approx(0.01, rel=0.1)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31), st.floats(0.002, 0.05))
+def test_voxel_down_sample_gives_each_occupied_voxels_centroid_in_any_input_order(seed, voxel):
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(300, 3)) * 0.05
+    out = voxel_down_sample(points, voxel)
+    origin = points.min(axis=0) - 0.5 * voxel
+    groups: dict[tuple[int, ...], list[np.ndarray]] = {}
+    for p in points:
+        groups.setdefault(tuple(np.floor((p - origin) / voxel).astype(int)), []).append(p)
+    expected = np.array([np.mean(groups[k], axis=0) for k in sorted(groups)])
+    assert np.allclose(out, expected, atol=1e-12)
+    # The output is a function of the set of points: no hash-map order leaks into it.
+    assert np.array_equal(voxel_down_sample(points[rng.permutation(len(points))], voxel), out)
+
+
+def test_statistical_outlier_removal_drops_far_points_and_keeps_the_surface():
+    rng = np.random.default_rng(0)
+    g = np.stack(np.meshgrid(np.linspace(0, 0.3, 40), np.linspace(0, 0.2, 30)), -1).reshape(-1, 2)
+    surface = np.c_[g, 0.001 * rng.normal(size=len(g))]
+    strays = rng.uniform(-0.5, 0.5, size=(12, 3)) + np.array([0.0, 0.0, 0.6])
+    kept = remove_statistical_outliers(np.r_[surface, strays], 20, 2.0)
+    assert len(kept) == len(surface)
+    assert np.array_equal(kept, surface)
+    # The mean distance counts the point itself (Open3D's convention): a point with 19
+    # coincident copies has a mean distance of 0 to its 20 neighbours and stays.
+    cluster = np.r_[np.zeros((20, 3)), rng.normal(size=(200, 3))]
+    kept = remove_statistical_outliers(cluster, 20, 2.0)
+    assert np.sum(~kept.any(axis=1)) == 20
 
 
 def test_chamfer_of_a_shifted_plane_is_the_shift():

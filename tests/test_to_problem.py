@@ -108,7 +108,7 @@ def test_a_collision_kind_is_a_penalty_a_hard_constraint_or_a_homotopy():
         inequalities = int(np.count_nonzero(np.isinf(group.upper)))
         shapes[treatment] = (inequalities, int(group.function.size1_out(2)))
     trunk_spheres = 2  # pelvis, torso; both palms touch the object
-    leg_spheres = 2 * (4 + 6)  # each thigh's capsule chain and each shin's
+    leg_spheres = 2 * (3 + 4 + 6)  # each hip's, thigh's and shin's capsule chain
     assert shapes["off"][1] == 0
     assert shapes["penalty"] == (shapes["off"][0], trunk_spheres)
     assert shapes["constraint"] == (shapes["off"][0] + trunk_spheres, 0)

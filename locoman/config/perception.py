@@ -247,8 +247,8 @@ class CloudsCfg:
         depth_weights_dir: Folder of the depth checkpoint for ``depth_anything``.
         intrinsics: ``heuristic`` (the paper: focal lengths = image resolution, principal
             point = half of it) or ``true`` (the renderer's, for ablation).
-        outlier_neighbours: Neighbours of Open3D's statistical outlier removal.
-        outlier_std_ratio: Std ratio of Open3D's statistical outlier removal [-].
+        outlier_neighbours: Neighbours of the statistical outlier removal (the point included).
+        outlier_std_ratio: Std ratio of the statistical outlier removal [-].
         voxel_m: Voxel size of the down-sampled clouds [m].
         min_points: Fewer object points than this is an error [-].
     """

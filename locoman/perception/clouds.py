@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import open3d as o3d
 from scipy.spatial import cKDTree
 
 from locoman.artifacts import (
@@ -46,14 +45,44 @@ KEYPOINT_WINDOW_PX = 2  # half size of the window whose median depth lifts a key
 CONTACT_KEYPOINTS = ("left_hand", "right_hand", "left_foot", "right_foot")
 
 
+def voxel_down_sample(points: np.ndarray, voxel_m: float) -> np.ndarray:
+    """Centroid [m] of the points (N, 3) in each occupied cube of side ``voxel_m`` [m].
+
+    The grid is Open3D's (``voxel_down_sample``: its origin half a voxel below the cloud's
+    minimum), so the centroids are the same up to rounding. They come sorted by voxel index,
+    each summed in sorted point order, so the output depends on the set of points only (Open3D's
+    order is a hash map's).
+    """
+    points = points[np.lexsort(points.T[::-1])]
+    origin = points.min(axis=0) - 0.5 * voxel_m
+    index = np.floor((points - origin) / voxel_m).astype(np.int64)
+    _, inverse, counts = np.unique(index, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    sums = np.stack(
+        [np.bincount(inverse, weights=points[:, j], minlength=len(counts)) for j in range(3)],
+        axis=1,
+    )
+    return sums / counts[:, None]
+
+
+def remove_statistical_outliers(
+    points: np.ndarray, neighbours: int, std_ratio: float
+) -> np.ndarray:
+    """The points (N, 3) [m] whose mean distance to their ``neighbours`` nearest points (the
+    point itself among them, as in Open3D's ``remove_statistical_outlier``) is below the mean
+    of those distances plus ``std_ratio`` standard deviations."""
+    distance, _ = cKDTree(points).query(points, k=neighbours)
+    mean = distance.mean(axis=1)
+    return points[mean < mean.mean() + std_ratio * mean.std(ddof=1)]
+
+
 def clean_cloud(points: np.ndarray, cfg: CloudsCfg) -> np.ndarray:
-    """Voxel down-sampling, then Open3D's statistical outlier removal."""
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    if cfg.voxel_m > 0.0:
-        cloud = cloud.voxel_down_sample(cfg.voxel_m)
-    if len(cloud.points) > cfg.outlier_neighbours:
-        cloud, _ = cloud.remove_statistical_outlier(cfg.outlier_neighbours, cfg.outlier_std_ratio)
-    return np.asarray(cloud.points)
+    """Voxel down-sampling, then statistical outlier removal (Sec. III-A.2)."""
+    if cfg.voxel_m > 0.0 and len(points):
+        points = voxel_down_sample(points, cfg.voxel_m)
+    if len(points) > cfg.outlier_neighbours:
+        points = remove_statistical_outliers(points, cfg.outlier_neighbours, cfg.outlier_std_ratio)
+    return points
 
 
 def object_cloud(

@@ -63,8 +63,14 @@ def robot_pixels(
 def robot_alone(model: mujoco.MjModel, option: mujoco.MjvOption) -> mujoco.MjModel:
     """A copy of ``model`` whose geoms other than the robot's are in a group ``option`` hides:
     what the camera would see of the robot were nothing in the way."""
+    hidden_groups = np.flatnonzero(np.asarray(option.geomgroup) == 0)
+    if not len(hidden_groups):
+        raise ValueError(
+            "robot_alone needs a view option that hides at least one geom group (set "
+            "option.geomgroup[g] = 0 for a group g the scene does not show)"
+        )
     alone = copy.deepcopy(model)
-    hidden = int(np.flatnonzero(np.asarray(option.geomgroup) == 0)[-1])
+    hidden = int(hidden_groups[-1])
     alone.geom_group[~robot_geoms(model)] = hidden
     return alone
 

@@ -85,7 +85,7 @@ class CollisionCfg:
             object; a non-solid object's parts check the forearms too; the elbows always.
             The forearms of the hands holding an open object (a basket) are kept out of
             its parts with the least margin (``SphereBox.touching``).
-        legs_object: Between the legs (the thighs' and shins' capsule spheres) and each
+        legs_object: Between the legs (the hips', thighs' and shins' capsule spheres) and each
             object's boxes.
             As the homotopy (13) (the paper's choice for S2's legs against the trolley)
             S2 diverged (cost 5.9e6 after 80 iterations, alpha still 0.97): the default

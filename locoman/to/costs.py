@@ -92,7 +92,7 @@ class CostWeights:
     slack: float = 1e5
     keyframe_base: list[float] = dataclasses.field(default_factory=lambda: [1e2, 1e1])
     keyframe_foot: float = 5e2
-    object_goal: float = 1e4
+    object_goal: float = 1e5
     object_upright: float = 1e2
     collision: float = 1e3
     homotopy: float = 2e2
