@@ -10,8 +10,7 @@ draws them with the figures stage's code into ``out_dir`` (fig5.png, fig6.png, s
 summary.md, metrics.json, timing.json). The cells are those of the full grid, under
 ``data/<scenario>/grid/``: the full grid reuses them, and this reuses the full grid's.
 ``--only-fig6`` skips Fig. 5, whose naive and collision-free runs each compile their own
-TO libraries (about 20 min apiece for S1 at -O0): fig6.png, summary.csv, summary.md and
-timing.json of Fig. 6 alone.
+TO libraries (about 20 min apiece for S1 at -O0).
 """
 
 from __future__ import annotations
@@ -19,44 +18,13 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import yaml
 
-from locoman.artifacts import write_json_atomic, write_text_atomic
-from locoman.artifacts.io import write_figure
 from locoman.config import load_params
-from locoman.config.schema import RootCfg
 from locoman.errors import LocomanError
-from locoman.grid.claims import claims_markdown, fig6_claims
-from locoman.grid.figures import fig6, markdown_table, summary_csv
-from locoman.grid.launch import launch
-from locoman.grid.report import collect, figures_scenario
-
-
-def fig6_only(cfg: RootCfg, scenario: str, out_dir: Path, params: Path) -> None:
-    """Fig. 6's grid of ``params`` (cells up to date are skipped), drawn and summarised."""
-    tic = time.perf_counter()
-    launch(scenario, "fig6", params_file=params)
-    wall = time.perf_counter() - tic
-    records = collect(cfg, scenario, "fig6", Path("data"))
-    bound = cfg.figures.grids[scenario].axis_bound_m
-    title = f"Paper A, Fig. 6: {scenario}, keyframe ablation (box mass, initial yaw)"
-    write_figure(out_dir / "fig6.png", fig6(records, bound, title))
-    write_text_atomic(out_dir / "summary.csv", summary_csv(records))
-    write_text_atomic(
-        out_dir / "summary.md",
-        f"# {scenario}: paper A's Fig. 6 (a subset of its grid)\n\n"
-        "## Where the paper's claims stand\n\n"
-        f"{claims_markdown(fig6_claims(records))}\n"
-        f"## Fig. 6\n\n{markdown_table(records)}",
-    )
-    cells_s = sum(r.get("wall_time_s", 0.0) for r in records)
-    write_json_atomic(
-        out_dir / "timing.json",
-        {"grid_wall_time_s": {"fig6": wall}, "cells_wall_time_s": {"fig6": cells_s}},
-    )
+from locoman.grid.report import REPORTS, figures_scenario
 
 
 def main(argv: list[str]) -> int:
@@ -80,13 +48,15 @@ def main(argv: list[str]) -> int:
         # not part of a cell's key, so the cells are the full grid's.
         params = Path(tmp) / "params.yaml"
         params.write_text(yaml.safe_dump(raw, sort_keys=False))
+        figures = ["fig6"] if args.only_fig6 else list(REPORTS)
         try:
-            if args.only_fig6:
-                fig6_only(load_params(params), args.scenario, args.out_dir, params)
-            else:
-                figures_scenario(
-                    load_params(params), args.scenario, args.out_dir, params_file=params
-                )
+            figures_scenario(
+                load_params(params),
+                args.scenario,
+                args.out_dir,
+                params_file=params,
+                figures=figures,
+            )
         except LocomanError as exc:
             print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)
             return 2

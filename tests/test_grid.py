@@ -272,3 +272,31 @@ def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
     with pytest.raises(ArtifactError, match="has no record"):
         report.figures_scenario(params, "tiny", tmp_path / "out", tmp_path, params_file=subset)
     assert launched == [("tiny", "fig5", subset), ("tiny", "fig6", subset)]
+
+
+def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, monkeypatch):
+    """``figures=["fig6"]`` (``figures_subset.py --only-fig6``) runs and reports Fig. 6 only;
+    an unknown figure is refused before anything runs."""
+    import locoman.grid.report as report
+
+    launched = []
+    monkeypatch.setattr(
+        report, "launch", lambda scenario, figure, params_file: launched.append(figure)
+    )
+    records = [
+        _record(run.name, "converged" if k else "not_converged", 0.002, yaw=yaw)
+        for yaw in (0.0, 0.6)
+        for k, run in enumerate(KEYFRAME_RUNS)
+    ]
+    monkeypatch.setattr(report, "collect", lambda *args: records)
+    out = tmp_path / "out"
+    metrics = report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig6"])
+    assert launched == ["fig6"]
+    assert (out / "fig6.png").is_file() and not (out / "fig5.png").exists()
+    assert set(metrics) == {"fig6", "claims"} and metrics["fig6"]["cells"] == 2
+    summary = (out / "summary.md").read_text()
+    assert summary.startswith("# tiny: paper A's Fig. 6\n") and "## Fig. 5" not in summary
+    assert len((out / "summary.csv").read_text().splitlines()) == 1 + len(records)
+    with pytest.raises(ConfigError, match="unknown figures"):
+        report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig7"])
+    assert launched == ["fig6"]

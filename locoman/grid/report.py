@@ -12,7 +12,9 @@ Outputs under ``data/<scenario>/figures/``::
 from __future__ import annotations
 
 import csv
+import dataclasses
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,14 +23,12 @@ import numpy as np
 from locoman.artifacts import write_json_atomic, write_metrics, write_text_atomic
 from locoman.artifacts.io import write_figure
 from locoman.config.schema import RootCfg
-from locoman.errors import ArtifactError
+from locoman.errors import ArtifactError, ConfigError
 from locoman.grid.cell import cell_dir, read_record
-from locoman.grid.claims import claims_markdown, fig5_claims, fig6_claims
+from locoman.grid.claims import Claim, claims_markdown, fig5_claims, fig6_claims
 from locoman.grid.figures import fig5, fig6, markdown_table, summary_csv
 from locoman.grid.launch import cells, launch
 from locoman.grid.runs import KEYFRAME_RUNS
-
-FIGURES = ("fig5", "fig6")
 
 
 def collect(cfg: RootCfg, scenario: str, figure: str, data_dir: Path) -> list[dict[str, Any]]:
@@ -65,23 +65,27 @@ def _curve_csv(curve: np.ndarray) -> str:
     return "\n".join(lines) + "\n"
 
 
-def figures_scenario(
-    cfg: RootCfg,
-    scenario: str,
-    out_dir: Path,
-    data_dir: Path = Path("data"),
-    params_file: Path = Path("params.yaml"),
-) -> dict[str, Any]:
-    """Run the grids of ``scenario`` (cells up to date are skipped), draw, summarise;
-    return the metrics. ``cfg`` is ``params_file``'s, which the cells read."""
-    seconds = {}
-    for figure in FIGURES:
-        tic = time.perf_counter()
-        launch(scenario, figure, params_file=params_file)
-        seconds[figure] = time.perf_counter() - tic
-    records = {figure: collect(cfg, scenario, figure, data_dir) for figure in FIGURES}
+@dataclasses.dataclass(frozen=True)
+class FigureReport:
+    """What one figure adds to the scenario's outputs (its PNG is already written)."""
 
-    runs5 = {r["run"]: r for r in records["fig5"]}
+    name: str
+    """Its name, e.g. "Fig. 5"."""
+    heading: str
+    """Its section's heading in the summary, e.g. "Fig. 5 (5 kg, 0 rad)"."""
+    table: str
+    """Its Markdown table, one row per run."""
+    claims: list[Claim]
+    """Where the paper's claims that rest on it stand."""
+    metrics: dict[str, Any]
+    """Its part of ``metrics.json``."""
+
+
+def report_fig5(
+    cfg: RootCfg, scenario: str, records: list[dict[str, Any]], out_dir: Path, data_dir: Path
+) -> FigureReport:
+    """Fig. 5: penetration per node of the four runs (PNG and one CSV curve per run)."""
+    runs = {r["run"]: r for r in records}
     curves = {}
     for cell in cells(cfg, scenario, "fig5"):
         curve = penetration_curve(cell_dir(data_dir, cell))
@@ -89,44 +93,92 @@ def figures_scenario(
             curves[cell.run] = curve
             write_text_atomic(out_dir / "fig5" / f"{cell.run}.csv", _curve_csv(curve))
     mass, yaw = cfg.scenario.box_mass, cfg.scenario.initial_yaw
-    title5 = f"Paper A, Fig. 5: {scenario} ({mass:g} kg, {yaw:g} rad)"
-    write_figure(out_dir / "fig5.png", fig5(runs5, curves, title5))
-    bound = cfg.figures.grids[scenario].axis_bound_m
-    title6 = f"Paper A, Fig. 6: {scenario}, keyframe ablation (box mass, initial yaw)"
-    write_figure(out_dir / "fig6.png", fig6(records["fig6"], bound, title6))
-
-    claims = fig5_claims(runs5, cfg.evaluate) + fig6_claims(records["fig6"])
-    write_text_atomic(out_dir / "summary.csv", summary_csv(records["fig5"] + records["fig6"]))
-    write_text_atomic(
-        out_dir / "summary.md",
-        f"# {scenario}: paper A's Fig. 5 and Fig. 6\n\n"
-        "## Where the paper's claims stand\n\n"
-        f"{claims_markdown(claims)}\n"
-        f"## Fig. 5 ({mass:g} kg, {yaw:g} rad)\n\n{markdown_table(records['fig5'])}\n"
-        f"## Fig. 6\n\n{markdown_table(records['fig6'])}",
-    )
-    fig6_cells = len(records["fig6"]) // len(KEYFRAME_RUNS)
-    metrics = {
-        "fig5": {
+    title = f"Paper A, Fig. 5: {scenario} ({mass:g} kg, {yaw:g} rad)"
+    write_figure(out_dir / "fig5.png", fig5(runs, curves, title))
+    return FigureReport(
+        name="Fig. 5",
+        heading=f"Fig. 5 ({mass:g} kg, {yaw:g} rad)",
+        table=markdown_table(records),
+        claims=fig5_claims(runs, cfg.evaluate),
+        metrics={
             r["run"]: {
                 "status": r["status"],
                 "avg_penetration_m": r.get("avg_penetration_m"),
                 "max_penetration_m": r.get("max_penetration_m"),
             }
-            for r in records["fig5"]
+            for r in records
         },
-        "fig6": {
-            "cells": fig6_cells,
-            "converged_rate": {
-                run.name: sum(
-                    r["status"] == "converged" for r in records["fig6"] if r["run"] == run.name
-                )
-                / fig6_cells
-                for run in KEYFRAME_RUNS
-            },
-            "errors": sum(r["status"] == "error" for r in records["fig6"]),
+    )
+
+
+def report_fig6(
+    cfg: RootCfg, scenario: str, records: list[dict[str, Any]], out_dir: Path, data_dir: Path
+) -> FigureReport:
+    """Fig. 6: the keyframe ablation's bars (PNG) and its convergence rate per setting."""
+    bound = cfg.figures.grids[scenario].axis_bound_m
+    title = f"Paper A, Fig. 6: {scenario}, keyframe ablation (box mass, initial yaw)"
+    write_figure(out_dir / "fig6.png", fig6(records, bound, title))
+    n_cells = len(records) // len(KEYFRAME_RUNS)
+    converged = {
+        run.name: sum(r["status"] == "converged" for r in records if r["run"] == run.name)
+        for run in KEYFRAME_RUNS
+    }
+    return FigureReport(
+        name="Fig. 6",
+        heading="Fig. 6",
+        table=markdown_table(records),
+        claims=fig6_claims(records),
+        metrics={
+            "cells": n_cells,
+            "converged_rate": {name: n / n_cells for name, n in converged.items()},
+            "errors": sum(r["status"] == "error" for r in records),
         },
-        "claims": {c.key: c.holds for c in claims},
+    )
+
+
+REPORTS = {"fig5": report_fig5, "fig6": report_fig6}
+"""The figures a scenario can have, in the summary's order: name -> report function."""
+
+
+def figures_scenario(
+    cfg: RootCfg,
+    scenario: str,
+    out_dir: Path,
+    data_dir: Path = Path("data"),
+    params_file: Path = Path("params.yaml"),
+    figures: Sequence[str] = tuple(REPORTS),
+) -> dict[str, Any]:
+    """Run the grids of ``figures`` for ``scenario`` (cells up to date are skipped), draw,
+    summarise; return the metrics. ``cfg`` is ``params_file``'s, which the cells read.
+
+    Raises:
+        ConfigError: An unknown figure.
+    """
+    unknown = set(figures) - set(REPORTS)
+    if unknown:
+        raise ConfigError(f"unknown figures {sorted(unknown)}; known: {list(REPORTS)}")
+    figures = [f for f in REPORTS if f in figures]
+    seconds = {}
+    for figure in figures:
+        tic = time.perf_counter()
+        launch(scenario, figure, params_file=params_file)
+        seconds[figure] = time.perf_counter() - tic
+    records = {f: collect(cfg, scenario, f, data_dir) for f in figures}
+    reports = {f: REPORTS[f](cfg, scenario, records[f], out_dir, data_dir) for f in figures}
+
+    claims = [c for report in reports.values() for c in report.claims]
+    rows = [r for f in figures for r in records[f]]
+    write_text_atomic(out_dir / "summary.csv", summary_csv(rows))
+    names = " and ".join(r.name for r in reports.values())
+    sections = "\n".join(f"## {r.heading}\n\n{r.table}" for r in reports.values())
+    write_text_atomic(
+        out_dir / "summary.md",
+        f"# {scenario}: paper A's {names}\n\n"
+        "## Where the paper's claims stand\n\n"
+        f"{claims_markdown(claims)}\n{sections}",
+    )
+    metrics = {f: r.metrics for f, r in reports.items()} | {
+        "claims": {c.key: c.holds for c in claims}
     }
     write_metrics(out_dir, metrics)
     write_json_atomic(
@@ -134,7 +186,7 @@ def figures_scenario(
         {
             "grid_wall_time_s": seconds,
             "cells_wall_time_s": {
-                f: sum(r.get("wall_time_s", 0.0) for r in records[f]) for f in FIGURES
+                f: sum(r.get("wall_time_s", 0.0) for r in records[f]) for f in figures
             },
         },
     )
