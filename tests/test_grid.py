@@ -24,6 +24,7 @@ from locoman.grid.cell import (
     check_same_world,
     read_record,
     run_cell,
+    with_time_limit,
 )
 from locoman.grid.claims import fig5_claims, fig6_claims
 from locoman.grid.figures import SUMMARY_COLUMNS, fig5, fig6, markdown_table, summary_csv
@@ -115,6 +116,19 @@ def test_the_key_changes_with_every_input(params, upstream):
     assert cell_key(cell, tiny, moved, evaluate, upstream) == key  # where the cache is: no
     (upstream / "retarget/keyframes/subtask_0.npz").write_bytes(b"another keyframe")
     assert cell_key(cell, tiny, solve, evaluate, upstream) != key
+
+
+def test_the_figures_time_limit_caps_the_solvers_and_keys_the_cell(params, upstream):
+    solve = params.solve
+    assert solve.solver.max_wall_time_s is None
+    limited = with_time_limit(solve, 600.0)
+    assert limited.solver.max_wall_time_s == 600.0  # IPOPT's max_wall_time [s]
+    tighter = dataclasses.replace(solve.solver, max_wall_time_s=60.0)
+    assert with_time_limit(dataclasses.replace(solve, solver=tighter), 600.0).solver == tighter
+    assert dataclasses.replace(limited, solver=solve.solver) == solve  # nothing else changes
+    cell, tiny, evaluate = CellCfg(), params.scenarios["tiny"], params.evaluate
+    keys = {cell_key(cell, tiny, s, evaluate, upstream) for s in (limited, solve)}
+    assert len(keys) == 2
 
 
 def test_a_failing_cell_is_recorded_and_a_rerun_skips_it(params, upstream):

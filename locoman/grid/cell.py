@@ -137,6 +137,17 @@ def _files(root: Path, entries: tuple[str, ...]) -> list[Path]:
     return out
 
 
+def with_time_limit(solve: SolveCfg, limit_s: float) -> SolveCfg:
+    """``solve`` with IPOPT's wall time capped at ``limit_s`` [s] (``figures.time_limit_s``;
+    a tighter ``solve.solver.max_wall_time_s`` stays). It goes into the cell's key: where
+    it stops a solve, it decides the cell's outcome."""
+    configured = solve.solver.max_wall_time_s
+    limit = limit_s if configured is None else min(configured, limit_s)
+    return dataclasses.replace(
+        solve, solver=dataclasses.replace(solve.solver, max_wall_time_s=limit)
+    )
+
+
 def cell_key(
     cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, evaluate: EvaluateCfg, upstream: Path
 ) -> str:
@@ -261,7 +272,7 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     run = find_run(cell.figure, cell.run)
     upstream = Path(data_dir) / cell.scenario
     scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
-    solve = run.apply(cfg.solve)
+    solve = with_time_limit(run.apply(cfg.solve), cfg.figures.time_limit_s)
     key = cell_key(cell, scenario, solve, cfg.evaluate, upstream)
     final = cell_dir(data_dir, cell)
     previous = read_record(final)
