@@ -1,7 +1,7 @@
 """Paper A's Fig. 5 and Fig. 6 of one scenario on a subset of its Fig. 6 grid.
 
 Usage: python benchmarks/figures_subset.py <scenario> <out_dir> [--box-mass M ...]
-       [--initial-yaw Y ...] [--only-fig6]
+       [--initial-yaw Y ...] [--figures fig5|fig6 ...]
 
 S1's and S2's full grids (``figures.grids``: 48 and 120 cells) take hours on 2 cores. This
 runs Fig. 5's four cells and Fig. 6's eight keyframe settings at the given box masses [kg]
@@ -9,8 +9,9 @@ and initial yaws [rad] (default: the scenario's ``scenario.box_mass``, ``initial
 draws them with the figures stage's code into ``out_dir`` (fig5.png, fig6.png, summary.csv,
 summary.md, metrics.json, timing.json). The cells are those of the full grid, under
 ``data/<scenario>/grid/``: the full grid reuses them, and this reuses the full grid's.
-``--only-fig6`` skips Fig. 5, whose naive and collision-free runs each compile their own
-TO libraries (about 20 min apiece for S1 at -O0).
+``--figures`` picks the figures (both by default): Fig. 5's naive and collision-free runs
+each compile their own TO libraries (about 20 min apiece for S1 at -O0), and one figure's
+cells can be run at another commit than the other's.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--box-mass", type=float, nargs="+", help="[kg]")
     parser.add_argument("--initial-yaw", type=float, nargs="+", help="[rad]")
-    parser.add_argument("--only-fig6", action="store_true", help="skip Fig. 5")
+    parser.add_argument("--figures", nargs="+", choices=list(REPORTS), default=list(REPORTS))
     args = parser.parse_args(argv)
     cfg = load_params()
     if args.scenario not in cfg.figures.grids:
@@ -48,14 +49,13 @@ def main(argv: list[str]) -> int:
         # not part of a cell's key, so the cells are the full grid's.
         params = Path(tmp) / "params.yaml"
         params.write_text(yaml.safe_dump(raw, sort_keys=False))
-        figures = ["fig6"] if args.only_fig6 else list(REPORTS)
         try:
             figures_scenario(
                 load_params(params),
                 args.scenario,
                 args.out_dir,
                 params_file=params,
-                figures=figures,
+                figures=args.figures,
             )
         except LocomanError as exc:
             print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)

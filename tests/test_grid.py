@@ -289,7 +289,7 @@ def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
 
 
 def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, monkeypatch):
-    """``figures=["fig6"]`` (``figures_subset.py --only-fig6``) runs and reports Fig. 6 only;
+    """``figures=["fig6"]`` (``figures_subset.py --figures fig6``) runs and reports Fig. 6 only;
     an unknown figure is refused before anything runs."""
     import locoman.grid.report as report
 
