@@ -14,7 +14,7 @@ from locoman.artifacts.io import split_wall_clock
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.to.collision import CollisionCfg, Obstacle
-from locoman.to.compile import SolverBuildError, compile_units
+from locoman.to.compile import Recipe, SolverBuildError, compile_units, load_or_compile
 from locoman.to.costs import CostWeights
 from locoman.to.kinematics import SymbolicKinematics
 from locoman.to.layout import NodeLayout, ObjectModel, object_key
@@ -132,6 +132,28 @@ def test_a_truncated_library_is_rebuilt_not_loaded(tmp_path, capsys):
     assert "1/1 f" in capsys.readouterr().out  # progress: unit, how many of how many
     compile_units([[_tiny_function("f_jac")]], tmp_path)
     assert "compiling" not in capsys.readouterr().out  # valid: loaded, not rebuilt
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
+def test_an_indexed_recipe_is_loaded_without_making_its_functions(tmp_path):
+    made = []
+
+    def make() -> tuple[list[ca.Function], dict]:
+        made.append(1)
+        return [_tiny_function("h_jac")], {"pattern": [1, 2]}
+
+    recipe = Recipe("h v1", make)
+    for calls in (1, 1):  # built and indexed, then loaded from the index
+        ((fn,), data) = load_or_compile([recipe], tmp_path)[0]
+        assert len(made) == calls and data == {"pattern": [1, 2]}
+        assert float(fn([0.5, 2.0])) == pytest.approx(2.0 * np.sin(0.5))
+    del fn  # unloads the library: truncating a loaded one is a SIGBUS
+    (library,) = tmp_path.glob("to_*.so")
+    library.write_bytes(library.read_bytes()[:100])  # the index's library is broken: remade
+    ((fn,), _) = load_or_compile([recipe], tmp_path)[0]
+    assert len(made) == 2 and float(fn([0.5, 2.0])) == pytest.approx(2.0 * np.sin(0.5))
+    load_or_compile([Recipe("h v2", make)], tmp_path)  # another fingerprint: made
+    assert len(made) == 3 and len(list(tmp_path.glob("index_*.json"))) == 2
 
 
 def test_a_missing_compiler_says_how_to_install_it(tmp_path, monkeypatch):

@@ -7,6 +7,14 @@ and the key, change only with the problem's structure. Each entry is ``to_<key>.
 is renamed into place: a library that does not match its record (a truncated copy, which
 would kill the process with SIGBUS on load) is rebuilt, never loaded.
 
+Making the functions (differentiating them) and generating their C take most of a build
+even when the library is cached: 80 % of S1's 164 s. So :func:`load_or_compile` also keeps
+an index, ``index_<key>.json``, keyed by a :class:`Recipe`'s fingerprint (what the
+functions are made from, cheap to compute): it names the library and holds what the caller
+needs besides the functions (their sparsity patterns). A known fingerprint loads the
+library directly; an unknown one makes the functions, finds or compiles their library as
+above, and is indexed.
+
 Several processes may share a cache (the cells of a grid, the end-to-end test and the
 user's own runs, through ``LOCOMAN_CACHE_DIR``): every file is written under a name of its
 own and renamed into place, so they never see each other's partial files.
@@ -16,12 +24,13 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import inspect
 import json
 import os
 import shutil
 import subprocess
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
@@ -101,6 +110,37 @@ def _build(unit: Unit, library: Path, compiler: str, flags: Sequence[str]) -> No
         partial.unlink(missing_ok=True)
 
 
+def _load(name: str, library: Path) -> ca.Function:
+    # CasADi builds derivatives of the NLP's own f and g (the "_val" functions) when it sets
+    # IPOPT up, though with every oracle given (and no lam_p asked for) it never evaluates
+    # them; a compiled function has none, so those get finite differences on paper.
+    return ca.external(name, str(library), {"enable_fd": name.endswith("_val")})
+
+
+def _ensure_built(
+    batches: Sequence[Sequence[ca.Function]],
+    directory: Path,
+    flags: Sequence[str],
+    jobs: int | None,
+) -> list[Path]:
+    """Each batch's library in ``directory``, compiled where none valid is there."""
+    compiler = os.environ.get("CC", "gcc")
+    units = [_unit(fns, compiler, flags) for fns in batches]
+    directory.mkdir(parents=True, exist_ok=True)
+    library = {u.key: directory / f"to_{u.key}.so" for u in units}
+    missing = list({u.key: u for u in units if not _valid(library[u.key])}.values())
+    if missing:
+        if shutil.which(compiler) is None:
+            raise SolverBuildError(
+                f"the TO compiles its derivatives to C, and the compiler {compiler!r} was not "
+                "found. Install it (Debian/Ubuntu: `apt-get install gcc`; `make setup` does "
+                "so as root), or set solve.solver.compile=false to interpret them, several "
+                "times slower per iteration."
+            )
+        _compile_all(missing, library, compiler, flags, jobs or os.cpu_count() or 1, directory)
+    return [library[u.key] for u in units]
+
+
 def compile_units(
     batches: Sequence[Sequence[ca.Function]],
     directory: Path,
@@ -117,30 +157,79 @@ def compile_units(
     Raises:
         SolverBuildError: No C compiler, or one failed.
     """
-    compiler = os.environ.get("CC", "gcc")
-    units = [_unit(fns, compiler, flags) for fns in batches]
-    directory.mkdir(parents=True, exist_ok=True)
-    library = {u.key: directory / f"to_{u.key}.so" for u in units}
-    missing = list({u.key: u for u in units if not _valid(library[u.key])}.values())
-    if missing:
-        if shutil.which(compiler) is None:
-            raise SolverBuildError(
-                f"the TO compiles its derivatives to C, and the compiler {compiler!r} was not "
-                "found. Install it (Debian/Ubuntu: `apt-get install gcc`; `make setup` does "
-                "so as root), or set solve.solver.compile=false to interpret them, several "
-                "times slower per iteration."
-            )
-        _compile_all(missing, library, compiler, flags, jobs or os.cpu_count() or 1, directory)
-    # CasADi builds derivatives of the NLP's own f and g (the "_val" functions) when it sets
-    # IPOPT up, though with every oracle given (and no lam_p asked for) it never evaluates
-    # them; a compiled function has none, so those get finite differences on paper.
+    libraries = _ensure_built(batches, directory, flags, jobs)
     return {
-        fn.name(): ca.external(
-            fn.name(), str(library[u.key]), {"enable_fd": fn.name().endswith("_val")}
-        )
-        for u in units
-        for fn in u.functions
+        fn.name(): _load(fn.name(), library)
+        for fns, library in zip(batches, libraries, strict=True)
+        for fn in fns
     }
+
+
+@dataclasses.dataclass(frozen=True)
+class Recipe:
+    """One library as :func:`load_or_compile` wants it.
+
+    Attributes:
+        fingerprint: Everything the functions are made from (a serialised function, the
+            settings, the version of the code that makes them): equal fingerprints must
+            give equal functions.
+        make: Makes the functions, with JSON-able data the caller needs beside them; called
+            only when the index does not know the fingerprint.
+    """
+
+    fingerprint: str
+    make: Callable[[], tuple[Sequence[ca.Function], dict]]
+
+
+# The index's entries point at libraries by the key of their generated C: a change to how
+# the C is generated must not reuse them.
+_CODEGEN = inspect.getsource(_unit)
+
+
+def _index_path(directory: Path, recipe: Recipe, flags: Sequence[str]) -> Path:
+    parts = [recipe.fingerprint, os.environ.get("CC", "gcc"), *flags, ca.__version__, _CODEGEN]
+    key = hashlib.sha256("\0".join(parts).encode()).hexdigest()[:16]
+    return directory / f"index_{key}.json"
+
+
+def _indexed(path: Path) -> tuple[list[str], Path, dict] | None:
+    """An index entry whose library is valid: function names, library, data."""
+    try:
+        entry = json.loads(path.read_text())
+        library = path.with_name(f"to_{entry['library']}.so")
+        names, data = list(entry["functions"]), dict(entry["data"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return (names, library, data) if _valid(library) else None
+
+
+def load_or_compile(
+    recipes: Sequence[Recipe],
+    directory: Path,
+    flags: Sequence[str] = ("-O0",),
+    jobs: int | None = None,
+) -> list[tuple[list[ca.Function], dict]]:
+    """Each recipe's functions, compiled (:func:`compile_units`), and its data: from the
+    index when it knows the recipe's fingerprint, else made, compiled and indexed.
+
+    Raises:
+        SolverBuildError: No C compiler, or one failed.
+    """
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = [_index_path(directory, r, flags) for r in recipes]
+    found = [_indexed(path) for path in paths]
+    todo = [i for i, entry in enumerate(found) if entry is None]
+    made = {i: recipes[i].make() for i in todo}
+    libraries = _ensure_built([made[i][0] for i in todo], directory, flags, jobs)
+    for i, library in zip(todo, libraries, strict=True):
+        functions, data = made[i]
+        names = [fn.name() for fn in functions]
+        entry = {"library": library.stem.removeprefix("to_"), "functions": names, "data": data}
+        partial = paths[i].with_name(f"{paths[i].stem}.{os.getpid()}.{time.monotonic_ns()}")
+        partial.write_text(json.dumps(entry))
+        partial.rename(paths[i])
+        found[i] = (names, library, data)
+    return [([_load(n, library) for n in names], data) for names, library, data in found]
 
 
 def _compile_all(

@@ -30,6 +30,8 @@ import contextlib
 import ctypes
 import ctypes.util
 import dataclasses
+import hashlib
+import inspect
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -39,7 +41,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sps
 
-from locoman.to.compile import SolverBuildError, compile_units
+from locoman.to.compile import Recipe, SolverBuildError, load_or_compile
 
 
 @dataclasses.dataclass(frozen=True)
@@ -151,6 +153,35 @@ def stage_derivatives(group: StageGroup, width: int) -> tuple[ca.Function, ...]:
     ), (jac.sparsity(), hess.sparsity())
 
 
+# A group's derivatives are a function of its function, its curvature switches and of
+# stage_derivatives' code: together they fingerprint its compiled library (see
+# locoman.to.compile: a known fingerprint skips the differentiation and the C generation).
+_DERIVATION = inspect.getsource(stage_derivatives)
+
+
+def _triplet(sp: ca.Sparsity) -> list:
+    rows, cols = sp.get_triplet()
+    return [sp.size1(), sp.size2(), list(rows), list(cols)]
+
+
+def _sparsities(data: dict) -> tuple[ca.Sparsity, ca.Sparsity]:
+    return tuple(ca.Sparsity.triplet(*data[k]) for k in ("jac", "hess"))
+
+
+def derivative_recipe(group: StageGroup, width: int) -> Recipe:
+    """The compiled derivatives of ``group`` (:func:`stage_derivatives`) as a cache
+    recipe; the sparsity patterns of J and H travel with them in the cache's index."""
+    switches = f"{width} {group.constraint_curvature} {group.residual_curvature}"
+    parts = [group.function.serialize(), switches, _DERIVATION]
+    fingerprint = hashlib.sha256("\0".join(parts).encode()).hexdigest()
+
+    def make() -> tuple[tuple[ca.Function, ...], dict]:
+        functions, (jac, hess) = stage_derivatives(group, width)
+        return functions, {"jac": _triplet(jac), "hess": _triplet(hess)}
+
+    return Recipe(fingerprint, make)
+
+
 def _local_to_global(stage: int, width: int, local: np.ndarray) -> np.ndarray:
     """Columns of (z_k, z_{k+1}) (or of z_k) -> indices of x."""
     return stage * width + local
@@ -188,12 +219,13 @@ class StageNLP:
             raise SolverBuildError("every stage 0 .. N-2 must be in exactly one group")
         self.width, self.nodes, self.n_params, self.n_theta = width, nodes, n_params, n_theta
         self.groups = list(groups)
-        derivs = [stage_derivatives(g, width) for g in self.groups]
-        functions = [f for fns, _ in derivs for f in fns]
-        if cache_dir is not None:
-            loaded = compile_units([fns for fns, _ in derivs], cache_dir, compile_flags)
-            functions = [loaded.get(f.name(), f) for f in functions]
-        per_group = [functions[4 * i : 4 * i + 4] for i in range(len(self.groups))]
+        if cache_dir is None:
+            derivs = [stage_derivatives(g, width) for g in self.groups]
+        else:
+            recipes = [derivative_recipe(g, width) for g in self.groups]
+            loaded = load_or_compile(recipes, cache_dir, compile_flags)
+            derivs = [(fns, _sparsities(data)) for fns, data in loaded]
+        per_group = [fns for fns, _ in derivs]
         self.n_x = width * nodes
         X, P = ca.MX.sym("x", self.n_x), ca.MX.sym("p", n_params * nodes + n_theta)
         self.n_g = sum(len(g.stages) * g.rows for g in self.groups)
