@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from locoman.config.figures import FiguresCfg, GridCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
@@ -175,6 +177,15 @@ def test_the_multirun_sweeps_every_cell_of_the_figure(params):
     assert "cell.box_mass=2.5,5.0" in command and "cell.initial_yaw=0.0,-0.6,1.2" in command
     assert f"cell.run={','.join(r.name for r in KEYFRAME_RUNS)}" in command
     assert "hydra.launcher.n_jobs=3" in command
+    jobs = BasicSweeper.split_arguments(
+        OverridesParser.create().parse_overrides(command[4:-1]), None
+    )[0]
+    swept = [dict(o.split("=", 1) for o in job if o.startswith("cell.")) for job in jobs]
+    assert [
+        (float(j["cell.box_mass"]), float(j["cell.initial_yaw"]), j["cell.run"]) for j in swept
+    ] == [
+        (c.box_mass, c.initial_yaw, c.run) for c in todo
+    ]  # Hydra launches them in cells()' order: whole (mass, yaw) panels first
     assert command[-1] == "hydra/launcher=submitit_slurm"  # the caller's overrides win
     fig5_cells = cells(cfg, "tiny", "fig5")
     assert [c.run for c in fig5_cells] == [r.name for r in PIPELINE_RUNS]

@@ -65,9 +65,11 @@ def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str])
         "--multirun",
         f"cell.scenario={scenario}",
         f"cell.figure={figure}",
-        f"cell.run={_values([c.run for c in swept])}",
+        # Hydra's sweep varies the last key fastest: the runs of one (mass, yaw) go together,
+        # so a grid stopped half-way has whole panels of Fig. 6.
         f"cell.box_mass={_values([c.box_mass for c in swept])}",
         f"cell.initial_yaw={_values([c.initial_yaw for c in swept])}",
+        f"cell.run={_values([c.run for c in swept])}",
         *launcher,
         *extra,
     ]
