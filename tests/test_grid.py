@@ -29,7 +29,14 @@ from locoman.grid.cell import (
     with_time_limit,
 )
 from locoman.grid.claims import fig5_claims, fig6_claims
-from locoman.grid.figures import SUMMARY_COLUMNS, fig5, fig6, markdown_table, summary_csv
+from locoman.grid.figures import (
+    SUMMARY_COLUMNS,
+    fig5,
+    fig6,
+    markdown_table,
+    setting_table,
+    summary_csv,
+)
 from locoman.grid.launch import cells, multirun_command
 from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_run
 from locoman.scene.builder import build_scene
@@ -278,6 +285,11 @@ def test_the_figures_and_the_summary_draw_from_records():
     table = summary_csv(records).splitlines()
     assert table[0].split(",") == list(SUMMARY_COLUMNS) and len(table) == 17
     assert "| AllKeyframe | 5 | 0.6 | converged |" in markdown_table(records)
+    settings = setting_table(records)
+    assert "| Base | 2/2 | 20.00 (20.0-20.0) | 40.0-40.0 | 2/2 |" in settings
+    # WarmStart: an error at yaw 0 (no penetration, not converged), not converged at 0.6.
+    assert "| WarmStart | 0/2 | 60.00 (60.0-60.0) | 120.0-120.0 | 0/2 |" in settings
+    assert len(settings.splitlines()) == 2 + len(KEYFRAME_RUNS)
 
 
 def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(

@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import statistics
 from collections.abc import Sequence
 from typing import Any
 
@@ -183,5 +184,36 @@ def markdown_table(records: Sequence[dict[str, Any]]) -> str:
             f"| {' / '.join(r.get('max_penetration_pair') or []) or '-'} "
             f"| {'-' if residual is None else f'{residual:.1e}'} "
             f"| {_mm(r.get('object_goal_error_m'))} |"
+        )
+    return head + "\n".join(rows) + "\n"
+
+
+def _range_mm(values: Sequence[float]) -> str:
+    return "-" if not values else f"{min(values) * 1000:.1f}-{max(values) * 1000:.1f}"
+
+
+def setting_table(records: Sequence[dict[str, Any]]) -> str:
+    """Fig. 6 per keyframe setting over the grid's cells, as a Markdown table: how many
+    converged, the mean and range of the cells' average penetration, the range of their
+    deepest node [mm], and how many passed every evaluation check. A cell that could not
+    run counts as not converged and has no penetration."""
+    head = (
+        "| setting | converged | avg pen. [mm], mean over cells (range) | max pen. [mm] (range) "
+        "| every check passes |\n|---|---|---|---|---|\n"
+    )
+    rows = []
+    for run in KEYFRAME_RUNS:
+        mine = [r for r in records if r["run"] == run.name]
+        if not mine:
+            continue
+        ran = [r for r in mine if r.get("avg_penetration_m") is not None]
+        avg = [r["avg_penetration_m"] for r in ran]
+        deepest = [r["max_penetration_m"] for r in ran if r.get("max_penetration_m") is not None]
+        mean = "-" if not avg else f"{statistics.fmean(avg) * 1000:.2f} ({_range_mm(avg)})"
+        converged = sum(r["status"] == "converged" for r in mine)
+        passed = sum(bool(r.get("success")) for r in mine)
+        rows.append(
+            f"| {run.label} | {converged}/{len(mine)} | {mean} | {_range_mm(deepest)} "
+            f"| {passed}/{len(mine)} |"
         )
     return head + "\n".join(rows) + "\n"

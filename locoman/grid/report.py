@@ -26,7 +26,7 @@ from locoman.config.schema import RootCfg
 from locoman.errors import ArtifactError, ConfigError
 from locoman.grid.cell import cell_dir, read_record
 from locoman.grid.claims import Claim, claims_markdown, fig5_claims, fig6_claims
-from locoman.grid.figures import fig5, fig6, markdown_table, summary_csv
+from locoman.grid.figures import fig5, fig6, markdown_table, setting_table, summary_csv
 from locoman.grid.launch import cells, launch
 from locoman.grid.runs import KEYFRAME_RUNS
 
@@ -126,7 +126,8 @@ def report_fig6(
     return FigureReport(
         name="Fig. 6",
         heading="Fig. 6",
-        table=markdown_table(records),
+        table=f"Per setting, over {n_cells} cells:\n\n{setting_table(records)}\n"
+        f"Per run:\n\n{markdown_table(records)}",
         claims=fig6_claims(records),
         metrics={
             "cells": n_cells,
