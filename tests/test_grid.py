@@ -249,8 +249,8 @@ def test_the_multirun_sweeps_every_cell_of_the_figure(params):
             ["tiny"], "joblib", 3, 60.0, {"tiny": GridCfg([2.5, 5.0], [0.0, -0.6, 1.2])}
         ),
     )
-    todo = cells(cfg, "tiny", "fig6")
-    assert len(todo) == 2 * 3 * 8 and len({c.name for c in todo}) == len(todo)
+    planned = cells(cfg, "tiny", "fig6")
+    assert len(planned) == 2 * 3 * 8 and len({c.name for c in planned}) == len(planned)
     command = multirun_command(cfg, "tiny", "fig6", ["hydra/launcher=submitit_slurm"])
     assert command[1:4] == ["-m", "locoman.grid.app", "--multirun"]
     assert "cell.box_mass=2.5,5.0" in command and "cell.initial_yaw=0.0,-0.6,1.2" in command
@@ -263,7 +263,7 @@ def test_the_multirun_sweeps_every_cell_of_the_figure(params):
     assert [
         (float(j["cell.box_mass"]), float(j["cell.initial_yaw"]), j["cell.run"]) for j in swept
     ] == [
-        (c.box_mass, c.initial_yaw, c.run) for c in todo
+        (c.box_mass, c.initial_yaw, c.run) for c in planned
     ]  # Hydra launches them in cells()' order: whole (mass, yaw) panels first
     assert command[-1] == "hydra/launcher=submitit_slurm"  # the caller's overrides win
     fig5_cells = cells(cfg, "tiny", "fig5")
