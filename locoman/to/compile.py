@@ -218,10 +218,10 @@ def load_or_compile(
     directory.mkdir(parents=True, exist_ok=True)
     paths = [_index_path(directory, r, flags) for r in recipes]
     found = [_indexed(path) for path in paths]
-    unknown = [i for i, entry in enumerate(found) if entry is None]
-    made = {i: recipes[i].make() for i in unknown}
-    libraries = _ensure_built([made[i][0] for i in unknown], directory, flags, jobs)
-    for i, library in zip(unknown, libraries, strict=True):
+    todo = [i for i, entry in enumerate(found) if entry is None]
+    made = {i: recipes[i].make() for i in todo}
+    libraries = _ensure_built([made[i][0] for i in todo], directory, flags, jobs)
+    for i, library in zip(todo, libraries, strict=True):
         functions, data = made[i]
         names = [fn.name() for fn in functions]
         entry = {"library": library.stem.removeprefix("to_"), "functions": names, "data": data}
