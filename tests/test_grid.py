@@ -43,7 +43,7 @@ from locoman.grid.figures import (
 )
 from locoman.grid.launch import cells, multirun_command
 from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_run
-from locoman.grid.sources import PACKAGE, imported_sources
+from locoman.grid.sources import PACKAGE, imported_sources, imports_of
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
 from locoman.to.collision import KINDS
@@ -147,6 +147,23 @@ def test_the_keys_hash_the_code_each_part_imports():
     assert {"sim/evaluate.py", "sim/pipeline.py", "to/kinematics.py"} <= evaluate
     with pytest.raises(ModuleNotFoundError, match="no module of locoman"):
         imported_sources(["locoman.no_such_module"])
+
+
+def test_imports_are_read_at_any_depth_and_relative_ones_resolved():
+    source = (
+        "import numpy as np\n"
+        "from . import costs\n"
+        "from ..scene.g1 import load\n"
+        "def later():\n"
+        "    import locoman.sim.camera\n"
+    )
+    assert imports_of(source, "locoman.to") == {
+        "locoman.to",
+        "locoman.to.costs",
+        "locoman.scene.g1",
+        "locoman.scene.g1.load",
+        "locoman.sim.camera",
+    }
 
 
 def test_the_figures_time_limit_caps_the_solvers_and_keys_the_cell(params, upstream):

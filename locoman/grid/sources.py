@@ -30,17 +30,26 @@ def module_file(name: str) -> Path | None:
     return None
 
 
-def _imported(path: Path) -> set[str]:
-    """Every locoman name an ``import`` in ``path`` names, at any depth (a function's lazy
-    import too), with each ``from a import b`` also as ``a.b`` (b may be a module)."""
+def imports_of(source: str, package: str) -> set[str]:
+    """Every locoman name an ``import`` in ``source`` (a module of ``package``, e.g.
+    ``locoman.to``) names, at any depth (a function's lazy import too), relative ones
+    resolved, with each ``from a import b`` also as ``a.b`` (b may be a module)."""
+    parts = package.split(".")
     names = set()
-    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+    for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names.add(node.module)
-            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = parts[: len(parts) - node.level + 1] if node.level else []
+            module = ".".join([*base, *(node.module.split(".") if node.module else [])])
+            names.add(module)
+            names.update(f"{module}.{alias.name}" for alias in node.names)
     return {n for n in names if n.split(".")[0] == ROOT}
+
+
+def _imported(path: Path) -> set[str]:
+    package = ".".join([ROOT, *path.relative_to(PACKAGE).parent.parts])
+    return imports_of(path.read_text(), package)
 
 
 def _with_parents(name: str) -> list[str]:
