@@ -33,12 +33,12 @@ $(LEARNED): $(STAMP)
 run: setup
 	$(BIN)/dvc repro
 
-# Two pytest-xdist workers: the end-to-end chain (tiny's DVC subgraph, then grid cells on its
-# artifacts) is one group on one worker, the other tests share the second; a plain `pytest`
-# runs them all in one process.
+# Two pytest-xdist workers, a test file on one: the end-to-end file (tiny's DVC subgraph, then
+# grid cells on its artifacts, in order) on one, the other files on whichever is free; a plain
+# `pytest` runs them all in one process.
 TEST_JOBS ?= 2
 test: setup $(LEARNED)
-	$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadgroup
+	$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile
 
 # The headline numbers per scenario, one table (from the stages' metrics.json).
 results: setup
