@@ -39,9 +39,9 @@ def panels(folder: Path, figure: str) -> list[dict]:
     """One entry per (box mass, initial yaw) with records under ``folder``, sorted."""
     intervals: dict[tuple[float, float], list[tuple[float, float]]] = defaultdict(list)
     for cell in sorted(folder.iterdir()):
-        record = read_record(cell)
-        if cell.name.startswith(".") or record is None:
-            continue  # a cell running or killed: no record yet
+        record = None if cell.name.startswith(".") else read_record(cell)
+        if record is None:
+            continue  # a cell running (its staging folder) or killed: no record yet
         end = (cell / RECORD_FILE).stat().st_mtime
         panel = (float(record["box_mass"]), float(record["initial_yaw"]))
         seconds = record.get("evaluate_wall_time_s", record["wall_time_s"])
