@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -11,6 +14,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 REPO = Path(__file__).resolve().parents[1]
+
+# A guard against a hung stage, not a speed check: a loaded 2-core machine must pass.
+CLI_TIMEOUT_S = 3600
 
 
 @pytest.fixture(scope="session")
@@ -35,3 +41,44 @@ def tiny_scene(params, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("tiny_scene")
     write_scene(out, build_scene("tiny", params.scenarios["tiny"], (64, 48)))
     return out
+
+
+def _run_cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+    from locoman.to.compile import CACHE_ENV
+
+    env = dict(os.environ)
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
+    # The copy's TO compiles into (and reuses) the checkout's cache: the generated C is the
+    # same, so `make test` and `make run` compile each problem structure once between them.
+    env.setdefault(CACHE_ENV, str(REPO / ".cache" / "casadi"))
+    return subprocess.run(
+        args, cwd=cwd, env=env, capture_output=True, text=True, timeout=CLI_TIMEOUT_S
+    )
+
+
+@pytest.fixture(scope="session")
+def run_cli():
+    """``run_cli(args, cwd)``: a command in a checkout copy, this interpreter's environment
+    first on PATH, its output captured."""
+    return _run_cli
+
+
+@pytest.fixture(scope="module")
+def workdir(repo, tmp_path_factory) -> Path:
+    """A fresh checkout-like copy per test file: tracked and unignored files only, no data
+    outputs, a git repository of its own (DVC needs one)."""
+    files = subprocess.run(
+        ["git", "ls-files", "--cached", "--others", "--exclude-standard"],
+        cwd=repo,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    dst = tmp_path_factory.mktemp("pipeline")
+    for rel in files:
+        src = repo / rel
+        if src.is_file() and not rel.startswith("data/"):
+            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst / rel)
+    assert _run_cli(["git", "init", "-q"], dst).returncode == 0
+    return dst

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
@@ -15,79 +12,31 @@ import pytest
 from locoman.artifacts.mcap_io import read_json_messages
 from locoman.scene.io import load_scene_model
 from locoman.sim.view import trajectory_qpos
-from locoman.to.compile import CACHE_ENV
-
-REPO = Path(__file__).resolve().parents[1]
 
 pytestmark = pytest.mark.slow
 
 # The grid test reuses the upstream artifacts the subgraph test leaves in the module's copy:
 # under pytest-xdist, `make test`'s `--dist loadfile` runs this file's tests on one worker,
 # in this order (an `xdist_group` mark with `--dist loadgroup` did not keep them together
-# with pytest 9.2 and xdist 3.8: they ran on two workers).
-
-# A guard against a hung stage, not a speed check: a loaded 2-core machine must pass.
-TIMEOUT_S = 3600
+# with pytest 9.2 and xdist 3.8: they ran on two workers). The experiments' tests, which
+# need none of them, are in test_dvc_experiments.py so that the other worker takes them.
 
 
-def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ)
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
-    # The copy's TO compiles into (and reuses) the checkout's cache: the generated C is the
-    # same, so `make test` and `make run` compile each problem structure once between them.
-    env.setdefault(CACHE_ENV, str(REPO / ".cache" / "casadi"))
-    return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
-
-
-@pytest.fixture(scope="module")
-def workdir(repo, tmp_path_factory) -> Path:
-    """A fresh checkout-like copy: tracked and unignored files only, no data outputs."""
-    files = subprocess.run(
-        ["git", "ls-files", "--cached", "--others", "--exclude-standard"],
-        cwd=repo,
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split()
-    dst = tmp_path_factory.mktemp("pipeline")
-    for rel in files:
-        src = repo / rel
-        if src.is_file() and not rel.startswith("data/"):
-            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dst / rel)
-    assert _run(["git", "init", "-q"], dst).returncode == 0
-    return dst
-
-
-def test_tiny_scene_stage_runs_then_is_cached(workdir):
-    dvc = [sys.executable, "-m", "dvc"]
-    first = _run([*dvc, "repro", "scene@tiny"], workdir)
-    assert first.returncode == 0, first.stderr
-    out = workdir / "data" / "tiny" / "scene"
-    for name in ("scene.xml", "objects.json", "plan.json", "initial_state.npz", "overview.png"):
-        assert (out / name).is_file(), name
-    metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["max_initial_penetration_m"] <= 1e-3
-    second = _run([*dvc, "repro", "scene@tiny"], workdir)
-    assert second.returncode == 0, second.stderr
-    assert "Running stage" not in second.stdout, second.stdout
-
-
-def test_bad_params_fail_at_start_up_naming_the_key(workdir):
+def test_bad_params_fail_at_start_up_naming_the_key(workdir, run_cli):
     params = workdir / "params.yaml"
     original = params.read_text()
     try:
         params.write_text(original.replace("box_mass: 5.0", "box_mass: 5.0\n  colour: red", 1))
-        result = _run([sys.executable, "stages/scene.py", "tiny"], workdir)
+        result = run_cli([sys.executable, "stages/scene.py", "tiny"], workdir)
         assert result.returncode == 2
         assert "scenario.colour" in result.stderr
     finally:
         params.write_text(original)
 
 
-def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
+def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir, run_cli):
     dvc = [sys.executable, "-m", "dvc"]
-    first = _run([*dvc, "repro", "evaluate@tiny"], workdir)
+    first = run_cli([*dvc, "repro", "evaluate@tiny"], workdir)
     assert first.returncode == 0, first.stderr
     root = workdir / "data" / "tiny"
     plan = json.loads((root / "scene" / "plan.json").read_text())
@@ -141,18 +90,18 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir):
     assert {"pelvis", "box", "table"} <= {e["id"] for e in update["entities"]}
     times, qpos = trajectory_qpos(load_scene_model(root / "scene"), root / "solve")
     assert len(times) == solve["nodes"] and np.all(np.isfinite(qpos))  # the viewer's frames
-    second = _run([*dvc, "repro", "evaluate@tiny"], workdir)
+    second = run_cli([*dvc, "repro", "evaluate@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     assert "Running stage" not in second.stdout, second.stdout
 
 
-def _grid(workdir: Path, *overrides: str) -> subprocess.CompletedProcess[str]:
+def _grid(run_cli, workdir: Path, *overrides: str):
     cell = ["cell.scenario=tiny", "cell.figure=fig6", "cell.box_mass=5.0", "cell.initial_yaw=0.0"]
     app = [sys.executable, "-m", "locoman.grid.app", "--multirun"]
-    return _run([*app, *cell, *overrides], workdir)
+    return run_cli([*app, *cell, *overrides], workdir)
 
 
-def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(workdir):
+def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(workdir, run_cli):
     """Issue 22: cells reuse the upstream artifacts of the test above; a cell that fails
     (here: ``figures.time_limit_s`` of 10 ms) is recorded and the grid goes on; a rerun
     skips it."""
@@ -162,7 +111,7 @@ def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(wor
     capped.write_text(text.replace("time_limit_s: 1800", "time_limit_s: 0.01", 1))
     launcher = ["hydra/launcher=submitit_local", "hydra.launcher.timeout_min=20"]
     args = ["cell.run=none,all", "params_file=params_capped.yaml", *launcher]
-    first = _grid(workdir, *args)
+    first = _grid(run_cli, workdir, *args)
     assert first.returncode == 0, first.stderr
     grid = workdir / "data" / "tiny" / "grid" / "fig6"
     for run in ("none", "all"):
@@ -171,36 +120,14 @@ def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(wor
         assert record["reason"] == "Maximum_WallTime_Exceeded" and record["iterations"] < 5
         assert np.isfinite(record["avg_penetration_m"])
     stamps = {p: p.stat().st_mtime_ns for p in grid.glob("*/cell.json")}
-    second = _grid(workdir, *args)
+    second = _grid(run_cli, workdir, *args)
     assert second.returncode == 0, second.stderr
     assert {p: p.stat().st_mtime_ns for p in grid.glob("*/cell.json")} == stamps
     # The default parameters (not capped): the cell is new, runs through joblib, converges.
-    third = _grid(workdir, "cell.run=all", "hydra/launcher=joblib", "hydra.launcher.n_jobs=1")
+    third = _grid(
+        run_cli, workdir, "cell.run=all", "hydra/launcher=joblib", "hydra.launcher.n_jobs=1"
+    )
     assert third.returncode == 0, third.stderr
     record = json.loads((grid / "all_m5_yaw+0" / "cell.json").read_text())
     assert record["status"] == "converged" and record["success"], record
     assert "converged" in third.stdout
-
-
-def test_temporary_and_queued_experiments_run_in_dvcs_own_copies(workdir):
-    """`dvc exp run --temp` and `--queue` run in copies without the checkout's .venv: the
-    scene's MJCF must load there (it once named its meshes through the .venv)."""
-    git = ["git", "-c", "user.name=test", "-c", "user.email=test@example.com"]
-    assert _run([*git, "add", "-A"], workdir).returncode == 0
-    assert _run([*git, "commit", "-qm", "base"], workdir).returncode == 0
-    dvc = [sys.executable, "-m", "dvc"]
-    run = _run(
-        [*dvc, "exp", "run", "--temp", "-S", "scenario.box_mass=2.5", "generate@tiny"], workdir
-    )
-    assert run.returncode == 0, run.stdout + run.stderr
-    assert "Ran experiment" in run.stdout + run.stderr
-    shown = _run([*dvc, "exp", "show", "--json"], workdir)
-    assert shown.returncode == 0 and "2.5" in shown.stdout
-    # A queued one runs in DVC's queue workers, in their own copies.
-    queued = _run(
-        [*dvc, "exp", "run", "--queue", "-S", "scenario.box_mass=7.5", "scene@tiny"], workdir
-    )
-    assert queued.returncode == 0, queued.stderr
-    assert _run([*dvc, "exp", "run", "--run-all"], workdir).returncode == 0
-    status = _run([*dvc, "queue", "status"], workdir)
-    assert "Success" in status.stdout and "Failed" not in status.stdout, status.stdout
