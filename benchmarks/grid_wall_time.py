@@ -7,7 +7,9 @@ A panel's wall time [s] is how long at least one of its cells was running: the u
 cells' intervals [end - wall_time_s, end], with ``end`` the time ``cell.json`` was written.
 A grid that ran across sessions, stopped and relaunched, so counts the time it computed and
 not the gaps between launches. Panels with fewer records than runs are marked
-``"whole": false``. Cells that errored count too: they took the time.
+``"whole": false``. Cells that errored count too: they took the time. A cell last evaluated
+again on its kept solve counts that evaluation (``evaluate_wall_time_s``): its solve ran in
+an earlier grid.
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ def panels(folder: Path, figure: str) -> list[dict]:
             continue  # a cell running (its staging folder) or killed: no record yet
         end = (cell / RECORD_FILE).stat().st_mtime
         panel = (float(record["box_mass"]), float(record["initial_yaw"]))
-        intervals[panel].append((end - float(record["wall_time_s"]), end))
+        seconds = record.get("evaluate_wall_time_s", record["wall_time_s"])
+        intervals[panel].append((end - float(seconds), end))
     runs = len(FIGURE_RUNS[figure])
     return [
         {

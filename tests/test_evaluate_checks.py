@@ -8,7 +8,12 @@ import pytest
 
 from locoman.config.to import EvaluateCfg
 from locoman.errors import SceneError
-from locoman.sim.evaluate import object_at_rest, support_under
+from locoman.sim.evaluate import (
+    nonholonomic_tangent,
+    nonholonomic_violation,
+    object_at_rest,
+    support_under,
+)
 from locoman.sim.pipeline import all_finite, held_lifts, pose_matrix
 from locoman.sim.view import view
 
@@ -120,3 +125,55 @@ def test_an_object_held_off_its_support_at_the_end_reports_its_lift():
     assert held_lifts(traj, ["basket"]) == {"basket": pytest.approx(0.06)}
     traj["support_kind"][-1, 0] = "surface"
     assert held_lifts(traj, ["basket"]) == {}
+
+
+X_REAR, DT, TURN, NODES = -0.3, 0.1, np.pi / 2, 12  # [m], [s], [rad]
+STEP = TURN / (NODES - 1)  # the yaw of one step [rad]
+# at a node, the rear axle's rate leaves the chord by the step's turn: |x_rear| (s - sin s) / dt
+TANGENT_SLIP = abs(X_REAR) * (STEP - np.sin(STEP)) / DT  # [m/s]
+
+
+def _rolling_chassis(lateral_mps: float = 0.0) -> dict[str, np.ndarray]:
+    """A chassis whose rear axle rolls a quarter of a circle of radius 1 m, heading at each
+    node along the axle's last step (the chord, as the TO's (7a) holds it), slid sideways at
+    ``lateral_mps`` [m/s]; rates by backward Euler, as the TO's (1c). Node 0 is not yet
+    moving (inactive), so every rate is a step's."""
+    theta = np.linspace(0.0, TURN, NODES)
+    yaw = theta - STEP / 2 + np.pi / 2
+    heading = np.c_[np.cos(yaw), np.sin(yaw), np.zeros(NODES)]
+    side = np.c_[-np.sin(yaw), np.cos(yaw), np.zeros(NODES)]
+    rear = np.c_[np.cos(theta), np.sin(theta), np.zeros(NODES)]
+    rear = rear + lateral_mps * DT * np.cumsum(side, axis=0)
+    q = np.c_[rear - X_REAR * heading, np.zeros((NODES, 2)), yaw]
+    active = np.ones((NODES, 1), dtype=bool)
+    active[0] = False
+    return {
+        "q": np.zeros((NODES, 35)),
+        "dt": np.full(NODES - 1, DT),
+        "object_q": q[:, None, :],
+        "object_v": np.diff(q, axis=0, prepend=q[:1])[:, None, :] / DT,
+        "rear_axle_x": np.array([X_REAR]),
+        "support_kind": np.full((NODES, 1), "chassis"),
+        "object_active": active,
+    }
+
+
+def test_a_chassis_rolling_along_its_chords_holds_7a_where_its_tangent_slips():
+    traj = _rolling_chassis()
+    assert nonholonomic_violation(traj) < 1e-12
+    assert nonholonomic_tangent(traj) == pytest.approx(TANGENT_SLIP, rel=1e-9)
+
+
+def test_a_chassis_slid_sideways_violates_7a_by_its_sliding_speed():
+    assert nonholonomic_violation(_rolling_chassis(lateral_mps=0.05)) == pytest.approx(0.05)
+
+
+def test_7a_is_held_on_the_rate_where_a_chassis_starts_to_roll():
+    """Where the chassis was not on the floor at the step's start, the TO holds (7a) on the
+    rate at the node, and so does the check; an inactive chassis is free."""
+    traj = _rolling_chassis()
+    traj["support_kind"][:6] = "none"
+    assert nonholonomic_violation(traj) == pytest.approx(TANGENT_SLIP, rel=1e-9)
+    traj["object_active"][:] = False
+    assert nonholonomic_violation(traj) == 0.0
+    assert nonholonomic_tangent(traj) == 0.0

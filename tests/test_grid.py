@@ -16,9 +16,12 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from locoman.config.figures import FiguresCfg, GridCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.errors import ArtifactError, ConfigError
+from locoman.grid import cell as cell_module
 from locoman.grid.app import summary
 from locoman.grid.cell import (
+    EVALUATE_MODULES,
     RECORD_FILE,
+    SOLVE_MODULES,
     CellCfg,
     cell_dir,
     cell_key,
@@ -26,6 +29,7 @@ from locoman.grid.cell import (
     check_same_world,
     read_record,
     run_cell,
+    solve_key,
     with_time_limit,
 )
 from locoman.grid.claims import fig5_claims, fig6_claims
@@ -39,6 +43,7 @@ from locoman.grid.figures import (
 )
 from locoman.grid.launch import cells, multirun_command
 from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_run
+from locoman.grid.sources import PACKAGE, imported_sources, imports_of
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
 from locoman.to.collision import KINDS
@@ -111,20 +116,54 @@ def upstream(tiny_scene, tmp_path) -> Path:
     return root
 
 
-def test_the_key_changes_with_every_input(params, upstream):
+def test_the_keys_change_with_every_input(params, upstream):
     tiny, solve, evaluate = params.scenarios["tiny"], params.solve, params.evaluate
     cell = CellCfg()
-    key = cell_key(cell, tiny, solve, evaluate, upstream)
-    assert cell_key(cell, tiny, solve, evaluate, upstream) == key
+    solved = solve_key(cell, tiny, solve, upstream)
+    assert solve_key(cell, tiny, solve, upstream) == solved
+    assert cell_key(solved, evaluate) == cell_key(solved, evaluate) != solved
     heavier = CellCfg(box_mass=2.5)
-    assert cell_key(heavier, cell_scenario(tiny, heavier), solve, evaluate, upstream) != key
+    assert solve_key(heavier, cell_scenario(tiny, heavier), solve, upstream) != solved
     weights = dataclasses.replace(solve.weights, collision=10.0)
     heavy_weights = dataclasses.replace(solve, weights=weights)
-    assert cell_key(cell, tiny, heavy_weights, evaluate, upstream) != key
+    assert solve_key(cell, tiny, heavy_weights, upstream) != solved
     moved = dataclasses.replace(solve, cache_dir="/elsewhere")
-    assert cell_key(cell, tiny, moved, evaluate, upstream) == key  # where the cache is: no
+    assert solve_key(cell, tiny, moved, upstream) == solved  # where the cache is: no
+    stricter = dataclasses.replace(evaluate, nonholonomic_tol_mps=1e-6)
+    assert cell_key(solved, stricter) != cell_key(solved, evaluate)  # the solve's stays
     (upstream / "retarget/keyframes/subtask_0.npz").write_bytes(b"another keyframe")
-    assert cell_key(cell, tiny, solve, evaluate, upstream) != key
+    assert solve_key(cell, tiny, solve, upstream) != solved
+
+
+def test_the_keys_hash_the_code_each_part_imports():
+    """The solve's code is what its modules import (the evaluation's is not in it), the
+    evaluation's adds its own; both follow imports, lazy ones too."""
+    solve = imported_sources(SOLVE_MODULES)
+    names = {str(p.relative_to(PACKAGE)) for p in solve}
+    assert {"to/trajopt.py", "to/supports.py", "scene/builder.py", "kernels.py"} <= names
+    assert {"contact/io.py", "retarget/io.py", "grid/runs.py", "__init__.py"} <= names
+    assert "sim/evaluate.py" not in names and "grid/figures.py" not in names
+    evaluate = {str(p.relative_to(PACKAGE)) for p in imported_sources(EVALUATE_MODULES)}
+    assert {"sim/evaluate.py", "sim/pipeline.py", "to/kinematics.py"} <= evaluate
+    with pytest.raises(ModuleNotFoundError, match="no module of locoman"):
+        imported_sources(["locoman.no_such_module"])
+
+
+def test_imports_are_read_at_any_depth_and_relative_ones_resolved():
+    source = (
+        "import numpy as np\n"
+        "from . import costs\n"
+        "from ..scene.g1 import load\n"
+        "def later():\n"
+        "    import locoman.sim.camera\n"
+    )
+    assert imports_of(source, "locoman.to") == {
+        "locoman.to",
+        "locoman.to.costs",
+        "locoman.scene.g1",
+        "locoman.scene.g1.load",
+        "locoman.sim.camera",
+    }
 
 
 def test_the_figures_time_limit_caps_the_solvers_and_keys_the_cell(params, upstream):
@@ -135,8 +174,8 @@ def test_the_figures_time_limit_caps_the_solvers_and_keys_the_cell(params, upstr
     tighter = dataclasses.replace(solve.solver, max_wall_time_s=60.0)
     assert with_time_limit(dataclasses.replace(solve, solver=tighter), 600.0).solver == tighter
     assert dataclasses.replace(limited, solver=solve.solver) == solve  # nothing else changes
-    cell, tiny, evaluate = CellCfg(), params.scenarios["tiny"], params.evaluate
-    keys = {cell_key(cell, tiny, s, evaluate, upstream) for s in (limited, solve)}
+    cell, tiny = CellCfg(), params.scenarios["tiny"]
+    keys = {solve_key(cell, tiny, s, upstream) for s in (limited, solve)}
     assert len(keys) == 2
 
 
@@ -153,6 +192,56 @@ def test_a_failing_cell_is_recorded_and_a_rerun_skips_it(params, upstream):
     again = run_cell(params, cell, data)
     assert again["skipped"] and again["key"] == record["key"]
     assert "error (ArtifactError" in summary(again)
+
+
+def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstream, monkeypatch):
+    """Stand-ins for the solve and the evaluation count their calls: a new evaluation
+    parameter reruns the evaluation on the kept trajectory and log, a solve parameter both."""
+    calls = {"solve": 0, "evaluate": 0}
+
+    def solve(name, scenario, solve, upstream, out):
+        calls["solve"] += 1
+        (out / "solve").mkdir(parents=True)
+        (out / "solve" / "trajectory.npz").write_bytes(b"a trajectory")
+        print("IPOPT's iterations")
+        return {
+            "status": "converged",
+            "reason": "",
+            "solver_status": "Solve_Succeeded",
+            "iterations": 7,
+            "solve_time_s": 1.5,
+        }
+
+    def evaluate(cfg, out):
+        calls["evaluate"] += 1
+        (out / "evaluate").mkdir()
+        print("evaluated")
+        return {"avg_penetration_m": cfg.nonholonomic_tol_mps, "success": True}
+
+    monkeypatch.setattr(cell_module, "_solve", solve)
+    monkeypatch.setattr(cell_module, "_evaluate", evaluate)
+    data, cell = upstream.parent, CellCfg("tiny", "fig6", "all", 5.0, 0.0)
+    first = run_cell(params, cell, data)
+    assert calls == {"solve": 1, "evaluate": 1} and not first["reevaluated"]
+    assert run_cell(params, cell, data)["skipped"] and calls["evaluate"] == 1
+    stricter = dataclasses.replace(
+        params, evaluate=dataclasses.replace(params.evaluate, nonholonomic_tol_mps=1e-6)
+    )
+    again = run_cell(stricter, cell, data)
+    assert calls == {"solve": 1, "evaluate": 2} and again["reevaluated"]
+    assert again["solve_key"] == first["solve_key"] and again["key"] != first["key"]
+    assert again["iterations"] == 7 and again["avg_penetration_m"] == 1e-6
+    assert again["wall_time_s"] == first["wall_time_s"] and "evaluate_wall_time_s" in again
+    folder = cell_dir(data, cell)
+    assert read_record(folder) == {k: v for k, v in again.items() if k != "skipped"}
+    assert (folder / "log.txt").read_text() == "IPOPT's iterations\nevaluated\nevaluated\n"
+    assert "evaluated again" in summary(again)
+    weights = dataclasses.replace(stricter.solve.weights, collision=10.0)
+    other = dataclasses.replace(
+        stricter, solve=dataclasses.replace(stricter.solve, weights=weights)
+    )
+    assert not run_cell(other, cell, data)["reevaluated"]
+    assert calls == {"solve": 2, "evaluate": 3}
 
 
 def test_a_cell_without_its_upstream_says_which_stage_to_run(params, tmp_path):
@@ -177,8 +266,8 @@ def test_the_multirun_sweeps_every_cell_of_the_figure(params):
             ["tiny"], "joblib", 3, 60.0, {"tiny": GridCfg([2.5, 5.0], [0.0, -0.6, 1.2])}
         ),
     )
-    todo = cells(cfg, "tiny", "fig6")
-    assert len(todo) == 2 * 3 * 8 and len({c.name for c in todo}) == len(todo)
+    planned = cells(cfg, "tiny", "fig6")
+    assert len(planned) == 2 * 3 * 8 and len({c.name for c in planned}) == len(planned)
     command = multirun_command(cfg, "tiny", "fig6", ["hydra/launcher=submitit_slurm"])
     assert command[1:4] == ["-m", "locoman.grid.app", "--multirun"]
     assert "cell.box_mass=2.5,5.0" in command and "cell.initial_yaw=0.0,-0.6,1.2" in command
@@ -191,7 +280,7 @@ def test_the_multirun_sweeps_every_cell_of_the_figure(params):
     assert [
         (float(j["cell.box_mass"]), float(j["cell.initial_yaw"]), j["cell.run"]) for j in swept
     ] == [
-        (c.box_mass, c.initial_yaw, c.run) for c in todo
+        (c.box_mass, c.initial_yaw, c.run) for c in planned
     ]  # Hydra launches them in cells()' order: whole (mass, yaw) panels first
     assert command[-1] == "hydra/launcher=submitit_slurm"  # the caller's overrides win
     fig5_cells = cells(cfg, "tiny", "fig5")

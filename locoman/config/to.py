@@ -73,7 +73,7 @@ class EvaluateCfg:
         rest_speed_tol: ... and every rate of its (p, rpy) is at most this [m/s, rad/s].
         rest_tilt_tol_rad: ... and its roll and pitch at most this [rad].
         nonholonomic_tol_mps: Largest lateral velocity of a chassis's rear wheels, (7a)
-            [m/s].
+            over each step as the TO holds it [m/s].
         rider_slip_tol_m: Largest slide of an object on the object carrying it [m].
         lift_tol_m: An object both hands hold at the end is at least this far above the
             support it was taken from (``<object>_lift_m``; S1: the basket) [m].

@@ -35,8 +35,13 @@ def summary(record: dict[str, Any]) -> str:
     pen = record["avg_penetration_m"]
     pen_text = "n/a" if pen is None else f"{pen * 1000:.2f} mm"
     why = f" ({record['reason']})" if record["reason"] else ""
-    skipped = " (up to date, skipped)" if record.get("skipped") else ""
-    return f"{head}{why}, {record['iterations']} its, avg penetration {pen_text}{skipped}"
+    if record.get("skipped"):
+        reuse = " (up to date, skipped)"
+    elif record.get("reevaluated"):
+        reuse = " (its solve up to date: evaluated again)"
+    else:
+        reuse = ""
+    return f"{head}{why}, {record['iterations']} its, avg penetration {pen_text}{reuse}"
 
 
 @hydra.main(version_base="1.3", config_path=str(CONFIG_DIR), config_name="grid")

@@ -9,13 +9,16 @@ refuses otherwise, so reused keyframes always belong to the cell's scene.
 
 Layout, per cell, under ``data/<scenario>/grid/<figure>/<cell>/``::
 
-    cell.json              the record: status, reason, key, the figures' numbers
+    cell.json              the record: status, reason, keys, the figures' numbers
     log.txt                what the solve printed (IPOPT's iterations)
     scene/ solve/ evaluate/    the stages' usual outputs (no filmstrip, no MP4)
 
 The record is written last, and the cell's folder is swapped in whole: a killed cell leaves
-its previous result or none. A cell whose key (a hash of everything it reads: the cell, its
-parameters, the upstream files, locoman's code) matches its record is skipped.
+its previous result or none. Two keys decide what a rerun does, as DVC's stages would:
+``solve_key`` hashes what the solve reads (the cell, the parameters but the evaluation's, the
+upstream files, the code the solve imports) and ``key`` adds the evaluation's parameters and
+code. A cell whose ``key`` matches its record is skipped; one whose ``solve_key`` alone
+matches is evaluated again on its trajectory (seconds, where a solve takes minutes).
 """
 
 from __future__ import annotations
@@ -34,35 +37,35 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import locoman
 from locoman.artifacts import write_json_atomic
 from locoman.config.schema import RootCfg, ScenarioCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.errors import ArtifactError, ConfigError
 from locoman.grid.runs import find_run
+from locoman.grid.sources import PACKAGE, imported_sources
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
 from locoman.sim.pipeline import evaluate_scenario
 from locoman.stage import valid_scenario_name
+from locoman.to.io import TRAJECTORY_FILE
 from locoman.to.pipeline import solve_scenario
 
 RECORD_FILE = "cell.json"
 LOG_FILE = "log.txt"
 # The upstream outputs a cell reads, under data/<scenario>/.
 UPSTREAM = ("scene/objects.json", "scene/plan.json", "contacts/subtasks", "retarget/keyframes")
-# locoman's code a cell runs (relative to the package): a change reruns every cell. The
-# figures' drawing is not in it: redrawing reuses the cells.
-CODE = (
-    "to",
-    "sim",
-    "scene",
-    "artifacts",
-    "config",
-    "contact/io.py",
-    "retarget/io.py",
-    "grid/cell.py",
-    "grid/runs.py",
+# The modules a cell's solve runs (their imports are followed, :mod:`locoman.grid.sources`)
+# and its evaluation's; this file's own code decides the cell's scenario and limits. The
+# figures' drawing is in neither: redrawing reuses the cells.
+SOLVE_MODULES = (
+    "locoman.scene.builder",
+    "locoman.scene.io",
+    "locoman.to.pipeline",
+    "locoman.grid.runs",
 )
+EVALUATE_MODULES = ("locoman.sim.pipeline",)
+# What the record keeps from a solve when only the evaluation runs again.
+SOLVE_NUMBERS = ("status", "reason", "solver_status", "iterations", "solve_time_s")
 # Statuses of a record: the TO converged, it stopped without converging (iteration or time
 # limit, infeasibility: IPOPT's status says which), or the cell could not run (the reason).
 STATUSES = ("converged", "not_converged", "error")
@@ -148,35 +151,56 @@ def with_time_limit(solve: SolveCfg, limit_s: float) -> SolveCfg:
     )
 
 
-def cell_key(
-    cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, evaluate: EvaluateCfg, upstream: Path
-) -> str:
-    """SHA-256 of everything the cell reads: the cell, its parameters (not where the
-    compiled TO is cached), the upstream files and locoman's code.
+def _solve_sources() -> list[Path]:
+    return sorted({*imported_sources(SOLVE_MODULES), Path(__file__)})
+
+
+def solve_key(cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, upstream: Path) -> str:
+    """SHA-256 of everything the cell's solve reads: the cell, its parameters (not where
+    the compiled TO is cached), the upstream files, the code the solve imports and this
+    module.
 
     Raises:
         ArtifactError: An upstream output is missing (run the pipeline up to ``retarget``).
     """
-    digest = hashlib.sha256()
-    settings = {
-        "cell": dataclasses.asdict(cell),
-        "scenario": dataclasses.asdict(scenario),
-        "solve": {k: v for k, v in dataclasses.asdict(solve).items() if k != "cache_dir"},
-        "evaluate": dataclasses.asdict(evaluate),
-    }
-    digest.update(json.dumps(settings, sort_keys=True, default=str).encode())
-    package = Path(locoman.__file__).parent
-    code = [p for p in _files(package, CODE) if p.suffix == ".py"]
     missing = [e for e in UPSTREAM if not (upstream / e).exists()]
     if missing:
         raise ArtifactError(
             f"the grid's cells reuse {upstream}/{{{', '.join(missing)}}}, which do not exist: "
             f"run `dvc repro retarget@{cell.scenario}` first"
         )
-    for path in [*_files(upstream, UPSTREAM), *code]:
-        digest.update(str(path.relative_to(path.parents[1])).encode())
+    settings = {
+        "cell": dataclasses.asdict(cell),
+        "scenario": dataclasses.asdict(scenario),
+        "solve": {k: v for k, v in dataclasses.asdict(solve).items() if k != "cache_dir"},
+    }
+    digest = _digest(settings)
+    for path in _files(upstream, UPSTREAM):
+        digest.update(str(path.relative_to(upstream)).encode())
         digest.update(path.read_bytes())
+    _update_with_code(digest, _solve_sources())
     return digest.hexdigest()
+
+
+def cell_key(solved: str, evaluate: EvaluateCfg) -> str:
+    """SHA-256 of everything the cell reads: its ``solved`` key (:func:`solve_key`), the
+    evaluation's parameters and the code the evaluation imports beyond the solve's."""
+    digest = _digest({"solve_key": solved, "evaluate": dataclasses.asdict(evaluate)})
+    solve_code = set(_solve_sources())
+    _update_with_code(
+        digest, [p for p in imported_sources(EVALUATE_MODULES) if p not in solve_code]
+    )
+    return digest.hexdigest()
+
+
+def _digest(settings: dict[str, Any]) -> Any:
+    return hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
+
+
+def _update_with_code(digest: Any, sources: list[Path]) -> None:
+    for path in sources:
+        digest.update(str(path.relative_to(PACKAGE)).encode())
+        digest.update(path.read_bytes())
 
 
 def check_same_world(cell_scene: Path, upstream_scene: Path) -> None:
@@ -201,14 +225,14 @@ def check_same_world(cell_scene: Path, upstream_scene: Path) -> None:
 
 
 @contextlib.contextmanager
-def output_to(path: Path) -> Iterator[None]:
+def output_to(path: Path, append: bool = False) -> Iterator[None]:
     """Send what this process prints to ``path``: Python's ``sys.stdout`` / ``sys.stderr``
     (whatever they are, a test's capture included) and file descriptors 1 and 2 (IPOPT's C
-    output)."""
+    output); after what it holds where ``append``."""
     sys.stdout.flush()
     sys.stderr.flush()
     saved = os.dup(1), os.dup(2)
-    with open(path, "w", buffering=1) as log:
+    with open(path, "a" if append else "w", buffering=1) as log:
         os.dup2(log.fileno(), 1)
         os.dup2(log.fileno(), 2)
         try:
@@ -222,27 +246,28 @@ def output_to(path: Path) -> Iterator[None]:
             os.close(saved[1])
 
 
-def _solve_and_evaluate(
-    name: str,
-    scenario: ScenarioCfg,
-    solve: SolveCfg,
-    evaluate: EvaluateCfg,
-    upstream: Path,
-    out: Path,
+def _solve(
+    name: str, scenario: ScenarioCfg, solve: SolveCfg, upstream: Path, out: Path
 ) -> dict[str, Any]:
-    """The cell's scene, solve and evaluation into ``out``; the record's numbers."""
+    """The cell's scene and solve into ``out``; the record's numbers of the solve."""
     write_scene(out / "scene", build_scene(name, scenario, (64, 48)))
     check_same_world(out / "scene", upstream / "scene")
     traj = solve_scenario(
         out / "scene", upstream / "contacts", upstream / "retarget", out / "solve", solve
     )
-    metrics = evaluate_scenario(out / "scene", out / "solve", out / "evaluate", evaluate, False)
     return {
         "status": "converged" if traj.success else "not_converged",
         "reason": "" if traj.success else traj.status,
         "solver_status": traj.status,
         "iterations": traj.iterations,
         "solve_time_s": traj.solve_time_s,
+    }
+
+
+def _evaluate(evaluate: EvaluateCfg, out: Path) -> dict[str, Any]:
+    """The evaluation of the solve in ``out``; the record's numbers of it."""
+    metrics = evaluate_scenario(out / "scene", out / "solve", out / "evaluate", evaluate, False)
+    return {
         "avg_penetration_m": metrics["avg_penetration_m"],
         "max_penetration_m": metrics["max_penetration_m"],
         "max_penetration_pair": metrics["max_penetration_pair"],
@@ -253,8 +278,20 @@ def _solve_and_evaluate(
     }
 
 
+def _solved(previous: dict[str, Any] | None, solved: str, folder: Path) -> bool:
+    """The cell's last record holds a solve of today's ``solved`` key, and its trajectory."""
+    return (
+        previous is not None
+        and previous.get("solve_key") == solved
+        and all(k in previous for k in SOLVE_NUMBERS)
+        and (folder / "solve" / TRAJECTORY_FILE).is_file()
+    )
+
+
 def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict[str, Any]:
-    """Run one cell unless its record is up to date; return its record.
+    """Run one cell unless its record is up to date; return its record. A cell whose solve
+    is up to date is only evaluated again (``"reevaluated": true``); its ``wall_time_s``
+    stays the solve's, ``evaluate_wall_time_s`` is the new evaluation's [s].
 
     Whatever goes wrong inside (a solver failure, a time limit, an infeasible input, a bug)
     is recorded as the cell's status and reason, and the function returns: a grid goes on.
@@ -273,31 +310,46 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     upstream = Path(data_dir) / cell.scenario
     scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
     solve = with_time_limit(run.apply(cfg.solve), cfg.figures.time_limit_s)
-    key = cell_key(cell, scenario, solve, cfg.evaluate, upstream)
+    solved = solve_key(cell, scenario, solve, upstream)
+    key = cell_key(solved, cfg.evaluate)
     final = cell_dir(data_dir, cell)
     previous = read_record(final)
     if previous is not None and previous.get("key") == key:
         return {**previous, "skipped": True}
     staging = final.with_name(f".{final.name}.staging")
     shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir(parents=True)
+    reuse = _solved(previous, solved, final)
+    if reuse:  # the scene, the solve and its log as they are; a new evaluation
+        shutil.copytree(final, staging, ignore=shutil.ignore_patterns(RECORD_FILE, "evaluate"))
+    else:
+        staging.mkdir(parents=True)
     tic = time.perf_counter()
-    with output_to(staging / LOG_FILE):
+    with output_to(staging / LOG_FILE, append=reuse):
         try:
-            numbers = _solve_and_evaluate(
-                cell.scenario, scenario, solve, cfg.evaluate, upstream, staging
-            )
+            if reuse:
+                numbers = {k: previous[k] for k in SOLVE_NUMBERS}
+            else:
+                numbers = _solve(cell.scenario, scenario, solve, upstream, staging)
+            numbers |= _evaluate(cfg.evaluate, staging)
         except Exception as exc:  # a grid records every failure and goes on
             traceback.print_exc()
             numbers = {"status": "error", "reason": f"{type(exc).__name__}: {exc}"}
+    seconds = time.perf_counter() - tic
     # JSON has no NaN: a non-finite number (a diverged solve) is recorded as null.
     nan = [k for k, v in numbers.items() if isinstance(v, float) and not math.isfinite(v)]
     finite = {**numbers, **dict.fromkeys(nan)}
+    timing = (
+        {"wall_time_s": previous["wall_time_s"], "evaluate_wall_time_s": seconds}
+        if reuse
+        else {"wall_time_s": seconds}
+    )
     record = {
         **dataclasses.asdict(cell),
         "label": run.label,
         **finite,
-        "wall_time_s": time.perf_counter() - tic,
+        **timing,
+        "reevaluated": reuse,
+        "solve_key": solved,
         "key": key,
     }
     write_json_atomic(staging / RECORD_FILE, record)

@@ -12,8 +12,9 @@
 - Slip: each stance foot's sole centre between consecutive nodes in contact.
 - Rest: where each object ends, it must stand upright on a support (the floor or another
   object's top face) and be still; a placement target in mid-air fails here.
-- A chassis: the lateral velocity of its rear wheels (7a); an object resting on another: how
-  far it slides on it.
+- A chassis: the lateral velocity of its rear wheels (7a), over each step as the TO holds it
+  (checked) and at the nodes (reported); an object resting on another: how far it slides on
+  it.
 """
 
 from __future__ import annotations
@@ -277,19 +278,47 @@ def friction_violation(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> 
     return worst
 
 
+def _rear_axle(traj: dict[str, np.ndarray], k: int, j: int) -> tuple[np.ndarray, ...]:
+    """Object j's rear-axle centre [m], its velocity [m/s] and C_ch's lateral axis at node k."""
+    qo, vo = traj["object_q"][k, j], traj["object_v"][k, j]
+    R = rpy_to_matrix(qo[3:6])
+    lever = traj["rear_axle_x"][j] * R[:, 0]
+    omega = euler_rates_to_world(qo[3:6]) @ vo[3:6]
+    return qo[:3] + lever, vo[:3] + np.cross(omega, lever), R[:, 1]
+
+
 def nonholonomic_violation(traj: dict[str, np.ndarray]) -> float:
-    """Largest lateral velocity [m/s] of a chassis's rear wheels in its frame, (7a), over
-    the nodes where it rolls; 0 without a chassis."""
+    """Largest lateral velocity [m/s] of a chassis's rear wheels in C_ch, (7a), as the TO
+    discretises it: over a step where the chassis rolls at both ends, the rear axle's
+    displacement along C_ch's y at the step's end divided by the step; where it starts to
+    roll, the rate at that node. 0 without a chassis.
+
+    The rate at every node (:func:`nonholonomic_tangent`) differs from this by the
+    discretisation: a chassis that turns moves along a chord, not its tangent.
+    """
+    worst = 0.0
+    dt = traj["dt"]
+    for k in range(1, len(traj["q"])):
+        for j in np.flatnonzero(traj["support_kind"][k] == "chassis"):
+            if not (traj["object_active"][k - 1, j] and traj["object_active"][k, j]):
+                continue  # (1) alone fixes the state where an object starts to move
+            rear, rate, lateral = _rear_axle(traj, k, j)
+            if traj["support_kind"][k - 1, j] == "chassis":
+                rate = (rear - _rear_axle(traj, k - 1, j)[0]) / dt[k - 1]
+            worst = max(worst, abs(float(lateral @ rate)))
+    return worst
+
+
+def nonholonomic_tangent(traj: dict[str, np.ndarray]) -> float:
+    """Largest lateral velocity [m/s] of a chassis's rear wheels in C_ch at the nodes where
+    it rolls, (7a) in continuous time: what the discretisation of
+    :func:`nonholonomic_violation` leaves, growing with the yaw rate and the step."""
     worst = 0.0
     for k in range(len(traj["q"])):
         for j in np.flatnonzero(traj["support_kind"][k] == "chassis"):
-            if not traj["object_active"][k, j]:
-                continue
-            qo, vo = traj["object_q"][k, j], traj["object_v"][k, j]
-            R = rpy_to_matrix(qo[3:6])
-            omega = euler_rates_to_world(qo[3:6]) @ vo[3:6]
-            rear = vo[:3] + np.cross(omega, traj["rear_axle_x"][j] * R[:, 0])
-            worst = max(worst, abs(float(R[:, 1] @ rear)))
+            if traj["object_active"][k, j]:
+                _, rate, lateral = _rear_axle(traj, k, j)
+                worst = max(worst, abs(float(lateral @ rate)))
     return worst
 
 

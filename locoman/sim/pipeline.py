@@ -37,6 +37,7 @@ from locoman.sim import camera
 from locoman.sim.evaluate import (
     dynamics_residuals,
     friction_violation,
+    nonholonomic_tangent,
     nonholonomic_violation,
     object_at_rest,
     penetrations,
@@ -276,6 +277,7 @@ def evaluate_scenario(
     if np.any(traj["support_kind"] == "chassis"):
         lateral = nonholonomic_violation(traj)
         metrics["nonholonomic_violation_max_mps"] = lateral
+        metrics["nonholonomic_tangent_max_mps"] = nonholonomic_tangent(traj)
         checks["nonholonomic"] = lateral <= cfg.nonholonomic_tol_mps
     for name, lift in lifts.items():
         metrics[f"{name}_lift_m"] = lift

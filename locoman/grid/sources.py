@@ -1,0 +1,81 @@
+"""The source files of locoman that a module runs: its imports, followed transitively.
+
+A grid cell's key hashes the code it runs (:mod:`locoman.grid.cell`). Read from the
+imports, not listed by hand, the set cannot miss a module a stage starts to use; parsed,
+not imported, it costs no import time and runs no code.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterable
+from pathlib import Path
+
+import locoman
+
+PACKAGE = Path(locoman.__file__).parent
+ROOT = PACKAGE.name  # "locoman"
+
+
+def module_file(name: str) -> Path | None:
+    """The source of module ``name`` (``locoman.a.b``): ``a/b.py`` or ``a/b/__init__.py``
+    under the package; None for a name that is no module of it (a class, a function)."""
+    parts = name.split(".")
+    if parts[0] != ROOT:
+        return None
+    base = PACKAGE.joinpath(*parts[1:])
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+def imports_of(source: str, package: str) -> set[str]:
+    """Every locoman name an ``import`` in ``source`` (a module of ``package``, e.g.
+    ``locoman.to``) names, at any depth (a function's lazy import too), relative ones
+    resolved, with each ``from a import b`` also as ``a.b`` (b may be a module)."""
+    parts = package.split(".")
+    names = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = parts[: len(parts) - node.level + 1] if node.level else []
+            module = ".".join([*base, *(node.module.split(".") if node.module else [])])
+            names.add(module)
+            names.update(f"{module}.{alias.name}" for alias in node.names)
+    return {n for n in names if n.split(".")[0] == ROOT}
+
+
+def _imported(path: Path) -> set[str]:
+    package = ".".join([ROOT, *path.relative_to(PACKAGE).parent.parts])
+    return imports_of(path.read_text(), package)
+
+
+def _with_parents(name: str) -> list[str]:
+    """``a.b.c`` -> ``a``, ``a.b``, ``a.b.c``: importing a module runs its packages first."""
+    parts = name.split(".")
+    return [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
+
+
+def imported_sources(modules: Iterable[str]) -> list[Path]:
+    """The sorted source files of ``modules`` and of every locoman module they import,
+    transitively, their packages' ``__init__.py`` included.
+
+    Raises:
+        ModuleNotFoundError: A name in ``modules`` is no locoman module.
+    """
+    seen: set[Path] = set()
+    stack = []
+    for name in modules:
+        if module_file(name) is None:
+            raise ModuleNotFoundError(f"{name!r} is no module of {ROOT} (under {PACKAGE})")
+        stack.append(name)
+    while stack:
+        for parent in _with_parents(stack.pop()):
+            path = module_file(parent)
+            if path is None or path in seen:
+                continue
+            seen.add(path)
+            stack.extend(_imported(path))
+    return sorted(seen)
