@@ -36,6 +36,37 @@ def _expected_params(repo) -> tuple[str, str]:
     return (repo / "params.yaml").read_text(), "params.yaml"
 
 
+# DVC's run cache drops every key named like a file's metadata from a stage's hash, at any depth
+# (treeverse/dvc#10296, open in the pinned DVC): changing such a parameter restores the previous
+# run's outputs. Drop this guard when a DVC with the fix (treeverse/dvc#11079) is pinned.
+DVC_DROPPED_KEYS = {"size", "nfiles"}
+
+
+def _keys_dvc_drops(node, path=()):
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key in DVC_DROPPED_KEYS:
+                yield ".".join(map(str, (*path, key)))
+            yield from _keys_dvc_drops(value, (*path, key))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _keys_dvc_drops(value, (*path, i))
+
+
+def test_no_parameter_key_is_one_dvcs_run_cache_drops(raw):
+    dropped = list(_keys_dvc_drops(raw))
+    assert not dropped, (
+        f"params.yaml keys {dropped}: DVC's run cache leaves keys named {sorted(DVC_DROPPED_KEYS)} "
+        "out of the stage hash (treeverse/dvc#10296), so changing them restores stale outputs; "
+        "rename them (objects use extents_m)"
+    )
+
+
+def test_the_guard_finds_a_nested_size_key():
+    found = list(_keys_dvc_drops({"a": [{"b": {"size": 1}}], "nfiles": 2}))
+    assert found == ["a.0.b.size", "nfiles"]
+
+
 def test_committed_params_is_not_stale(repo, monkeypatch):
     monkeypatch.chdir(repo)
     expected, where = _expected_params(repo)
@@ -135,7 +166,7 @@ NON_FINITE_KEYS = [
     ("scenarios", "tiny", "start", "yaw"),
     ("scenarios", "tiny", "start", "xy", 0),
     ("scenarios", "tiny", "objects", "box", "pos", 1),
-    ("scenarios", "tiny", "objects", "box", "size", 2),
+    ("scenarios", "tiny", "objects", "box", "extents_m", 2),
     ("solve", "contact", "floor_friction"),
     ("solve", "solver", "tolerance"),
     ("evaluate", "goal_tol_m"),

@@ -47,3 +47,39 @@ def test_temporary_and_queued_experiments_run_in_dvcs_own_copies(workdir, run_cl
     assert run_cli([*dvc, "exp", "run", "--run-all"], workdir).returncode == 0
     status = run_cli([*dvc, "queue", "status"], workdir)
     assert "Success" in status.stdout and "Failed" not in status.stdout, status.stdout
+
+
+def test_an_objects_extents_rerun_the_scene(workdir, run_cli):
+    """issue 53: with the dimensions under a key named ``size``, DVC's run cache restored the
+    previous scene after they changed (treeverse/dvc#10296), through an edit of params.yaml
+    and through ``dvc exp run -S`` alike."""
+    import yaml
+
+    git = ["git", "-c", "user.name=test", "-c", "user.email=test@example.com"]
+    dvc = [sys.executable, "-m", "dvc"]
+    params = workdir / "params.yaml"
+    original = params.read_text()
+    objects = workdir / "data" / "tiny" / "scene" / "objects.json"
+
+    def box_extents() -> list[float]:
+        return json.loads(objects.read_text())["objects"]["box"]["size_m"]
+
+    assert run_cli([*dvc, "repro", "scene@tiny"], workdir).returncode == 0
+    first = box_extents()
+    edited = yaml.safe_load(original)
+    edited["scenarios"]["tiny"]["objects"]["box"]["extents_m"][2] = first[2] + 0.05
+    params.write_text(yaml.safe_dump(edited, sort_keys=False))
+    run = run_cli([*dvc, "repro", "scene@tiny"], workdir)
+    assert run.returncode == 0, run.stderr
+    assert "Running stage 'scene@tiny'" in run.stdout, run.stdout
+    assert box_extents()[2] == pytest.approx(first[2] + 0.05)
+
+    params.write_text(original)
+    assert run_cli([*git, "add", "-A"], workdir).returncode == 0
+    assert run_cli([*git, "commit", "-qm", "extents", "--allow-empty"], workdir).returncode == 0
+    wider = [first[0] + 0.05, first[1], first[2]]
+    override = "scenarios.tiny.objects.box.extents_m=[" + ",".join(map(str, wider)) + "]"
+    run = run_cli([*dvc, "exp", "run", "-S", override, "scene@tiny"], workdir)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert box_extents() == pytest.approx(wider)
+    params.write_text(original)

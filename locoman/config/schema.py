@@ -27,7 +27,8 @@ class ObjectCfg:
 
     Attributes:
         kind: Registered object kind (``locoman.scene.objects.OBJECT_KINDS``).
-        size: Kind-specific extents [m]; a box is (length x, width y, height z).
+        extents_m: Kind-specific extents [m]; a box is (length x, width y, height z). Not
+            named ``size``: DVC's run cache drops keys named ``size`` from a stage's hash.
         pos: Position (x, y, z) [m] of the object's origin: the centre of its bottom face.
         yaw: Rotation about world z [rad].
         mass: [kg]; ``null`` makes the object static (welded to the world).
@@ -36,7 +37,7 @@ class ObjectCfg:
     """
 
     kind: str = MISSING
-    size: list[float] = MISSING
+    extents_m: list[float] = MISSING
     pos: list[float] = MISSING
     yaw: float = 0.0
     mass: float | None = None
@@ -47,8 +48,8 @@ class ObjectCfg:
         errors = []
         if len(self.pos) != 3:
             errors.append(("pos", f"needs 3 values (x, y, z) [m], got {len(self.pos)}"))
-        if any(s <= 0.0 for s in self.size):
-            errors.append(("size", f"every extent must be > 0 m, got {self.size}"))
+        if any(s <= 0.0 for s in self.extents_m):
+            errors.append(("extents_m", f"every extent must be > 0 m, got {self.extents_m}"))
         if self.mass is not None and self.mass <= 0.0:
             errors.append(("mass", f"must be > 0 kg or null (static), got {self.mass}"))
         if not 0.0 < self.friction <= 5.0:

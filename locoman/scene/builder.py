@@ -77,7 +77,7 @@ def build_scene(name: str, cfg: ScenarioCfg, render_size: tuple[int, int] = (640
 
 
 def _add_object(spec: mujoco.MjSpec, name: str, obj: ObjectCfg) -> dict[str, Any]:
-    geometry = object_geometry(obj.kind, obj.size)
+    geometry = object_geometry(obj.kind, obj.extents_m)
     quat = rotations.yaw_quat_wxyz(obj.yaw)
     body = spec.worldbody.add_body(name=name, pos=list(obj.pos), quat=list(quat))
     if obj.mass is not None:
@@ -97,7 +97,7 @@ def _add_object(spec: mujoco.MjSpec, name: str, obj: ObjectCfg) -> dict[str, Any
             geom.mass = obj.mass * volume / sum(volumes)
     return {
         "kind": obj.kind,
-        "size_m": list(obj.size),
+        "size_m": list(obj.extents_m),
         "pos_m": list(obj.pos),
         "yaw_rad": obj.yaw,
         "quat_wxyz": quat.tolist(),
