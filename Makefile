@@ -13,10 +13,11 @@ export PATH := $(abspath $(BIN)):$(PATH)
 
 setup: $(STAMP)
 
-# MuJoCo renders off-screen through libEGL and the TO compiles C with gcc, which fresh Debian
-# images may lack; everything else is on PyPI.
+# MuJoCo renders off-screen through libEGL and the TO compiles C with gcc (tcc, if there, for
+# -O0 builds), which fresh Debian images may lack; everything else is on PyPI.
 $(STAMP): pyproject.toml requirements.lock
 	@(ldconfig -p | grep -q 'libEGL.so.1' && command -v gcc >/dev/null) || bash .ci/install-system-deps
+	@command -v tcc >/dev/null || bash .ci/install-system-deps || echo "locoman: no tcc; the TO's -O0 builds use gcc"
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev]"

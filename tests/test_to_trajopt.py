@@ -9,17 +9,18 @@ import mujoco
 import numpy as np
 import pytest
 
+from locoman.config.to import SolveCfg, SolverCfg
 from locoman.errors import ConfigError
 from locoman.scene import g1
 from locoman.sim.evaluate import cone_violation, dynamics_residuals, geom_label, stance_slip
-from locoman.to.collision import CollisionCfg
+from locoman.to.collision import KINDS, CollisionCfg
 from locoman.to.costs import CostWeights
+from locoman.to.inputs import Keyframe, TOInputs
 from locoman.to.layout import ObjectModel
-from locoman.to.parameters import GlobalParameters
-from locoman.to.problem import ContactCfg
+from locoman.to.modes import node_modes
+from locoman.to.optimizer import TrajectoryOptimizer
 from locoman.to.schedule import ScheduleCfg, step_count, subtask_phases
 from locoman.to.supports import Chassis, OnObject, Surface
-from locoman.to.trajopt import Keyframe, SolverCfg, TOInputs, TrajectoryOptimizer, node_modes
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
 SOLE = g1.foot_sole_corners()["left_ankle_roll_link"].mean(axis=0)
@@ -48,13 +49,13 @@ def _squat_inputs() -> TOInputs:
     return _inputs([Keyframe("walk", keyframe, None, BOX_ON_TABLE)])
 
 
-def _optimizer(tmp_path_factory, **solver) -> TrajectoryOptimizer:
-    cache = tmp_path_factory.getbasetemp() / "casadi"
-    cfg = SolverCfg(compile=False, print_level=0, **solver)
+def _cfg(**solver) -> SolveCfg:
     schedule = ScheduleCfg(double_support_nodes=4)
-    return TrajectoryOptimizer(
-        _squat_inputs(), schedule, CostWeights(), ContactCfg(), CollisionCfg(), cfg, cache
-    )
+    return SolveCfg(schedule=schedule, solver=SolverCfg(compile=False, print_level=0, **solver))
+
+
+def _optimizer(tmp_path_factory, **solver) -> TrajectoryOptimizer:
+    return TrajectoryOptimizer(_squat_inputs(), _cfg(**solver), None)
 
 
 def _as_arrays(traj) -> dict[str, np.ndarray]:
@@ -93,11 +94,10 @@ def test_new_weights_re_solve_the_same_built_problem(tmp_path_factory, squat):
     reference and a heavier weight on it, re-solves without rebuilding, and the robot goes
     down further."""
     optimizer = _optimizer(tmp_path_factory, max_iterations=200)
-    nlp = optimizer.nlp
+    nlps = dict(optimizer._nlps)
     lower = dataclasses.replace(CostWeights(), base_height_m=0.6, base_height=1e4)
-    params = GlobalParameters.of(lower, ContactCfg(), CollisionCfg(), (BOX,), ())
-    deeper = optimizer.solve(parameters=params)
-    assert optimizer.nlp is nlp
+    deeper = optimizer.solve(numbers=dataclasses.replace(optimizer.numbers, weights=lower))
+    assert optimizer._nlps == nlps  # the same assembled NLP, other numbers
     assert deeper.success, deeper.status
     assert deeper.q[-1, 2] < squat.q[-1, 2] - 0.02
 
@@ -250,3 +250,32 @@ def test_geom_label_names_unnamed_geoms_by_their_body():
     )
     assert geom_label(model, 0) == "table/top"
     assert geom_label(model, 1) == "left_wrist_yaw_link#1"
+
+
+def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):
+    """Issue 47: the terms are compiled once per robot. The squat, then the squat with
+    another contact schedule and collision set (longer stances, no self pairs, the legs'
+    pairs as hard constraints), and its keyframe costs switched off: every problem loads
+    the libraries the first one built, and compiles nothing."""
+    cache = tmp_path / "casadi"
+    solver = {"compile": True, "compile_flags": ["-O0"], "print_level": 0}
+    first = TrajectoryOptimizer(_squat_inputs(), SolveCfg(solver=SolverCfg(**solver)), cache)
+    libraries = sorted(cache.glob("to_*.so"))
+    assert len(libraries) == len(first.derivatives)
+    other = SolveCfg(
+        schedule=ScheduleCfg(double_support_nodes=6),
+        collision=CollisionCfg(self_pairs=[], legs_object="constraint"),
+        keyframe_base=False,
+        solver=SolverCfg(**solver),
+    )
+    second = TrajectoryOptimizer(_squat_inputs(), other, cache)
+    assert sorted(cache.glob("to_*.so")) == libraries
+    assert second.nlp.key != first.nlp.key
+    assert second.schedule.nodes != first.schedule.nodes
+    assert {p.kind for p in second.transcription.pairs} == set(KINDS) - {
+        "self_collision",
+        "feet_environment",
+        "hands_environment",
+        "object_environment",
+        "feet_object",
+    }

@@ -11,11 +11,131 @@ import math
 from dataclasses import dataclass, field
 
 from locoman.contact.io import CONTACT_FIELDS
+from locoman.to.assembly import HESSIANS
 from locoman.to.collision import CollisionCfg
 from locoman.to.costs import CostWeights
-from locoman.to.problem import ContactCfg
 from locoman.to.schedule import ScheduleCfg
-from locoman.to.trajopt import SolverCfg
+
+
+@dataclass
+class ContactCfg:
+    """Contact parameters of the TO.
+
+    Attributes:
+        floor_friction: mu of the feet on the ground [-].
+        stiffness: k_z of (2a) [1/s].
+        prehensile: Hands grasp the object: (3) is dropped for them (paper A, Sec. IV-A.2).
+        palm_half_extents_m: Half sizes of a palm's patch for the CoP of (3b) [m].
+    """
+
+    floor_friction: float = 0.8
+    stiffness: float = 50.0
+    prehensile: bool = False
+    palm_half_extents_m: list[float] = field(default_factory=lambda: [0.04, 0.03])
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.floor_friction <= 0.0 or self.stiffness <= 0.0:
+            errors.append(("stiffness", "friction and stiffness must be > 0"))
+        if len(self.palm_half_extents_m) != 2 or min(self.palm_half_extents_m) <= 0.0:
+            errors.append(("palm_half_extents_m", "needs two half sizes > 0 m"))
+        return errors
+
+
+# The solver backends (``solve.solver.backend``): IPOPT's options for each. MUMPS is the
+# default, with the approximate minimum degree ordering: its automatic choice took twice as
+# long in the linear algebra on tiny (18.9 s against 9.3 s, the same 85 iterations).
+BACKENDS: dict[str, dict[str, object]] = {
+    "ipopt_mumps": {"linear_solver": "mumps", "mumps_pivot_order": 0},
+    "ipopt_spral": {"linear_solver": "spral"},
+}
+
+
+@dataclass
+class SolverCfg:
+    """IPOPT and the time grid.
+
+    Attributes:
+        backend: A key of :data:`BACKENDS`: IPOPT with MUMPS or with SPRAL.
+        dt_bounds: Bounds of each time step [s].
+        max_iterations: IPOPT's max_iter.
+        tolerance: IPOPT's tol, on its scaled optimality error. The collision penalties'
+            Gauss-Newton Hessian converges linearly at the end: on ``tiny`` the cost is
+            fixed to 8 digits from iteration 165, and 1e-6 took 55 more than 1e-4.
+        constraint_tolerance: IPOPT's constr_viol_tol [SI units of each constraint]: the
+            dynamics (1) hold to this, whatever ``tolerance``.
+        compile: Compile the terms' derivatives to C (cached by their hash, once per
+            robot) instead of interpreting them: several times faster per iteration.
+        compile_flags: The C compiler's flags (:mod:`locoman.to.compile`). ``-O1`` by
+            default, with gcc: the set is compiled once per robot (about 50 s, the G1's
+            kinematics most of it) and every solve runs faster for it; ``-O0`` builds
+            with tcc where it is installed (a few seconds), for slower evaluations
+            (``benchmarks/results/to_solvers.json``).
+        print_level: IPOPT's print level (5: one line per iteration, the progress).
+        warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
+            every node starts at the initial state.
+        max_wall_time_s: IPOPT's max_wall_time [s]: a solve stopped by it is a failed solve
+            (status ``Maximum_WallTime_Exceeded``); None: no limit. The grids' time limit.
+        hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
+            ``gauss_newton`` (default): the costs' exact Hessian, the penalties' Gauss-Newton
+            one, and none of the constraints' second derivatives; ``exact``: with the
+            constraints' lambda' nabla^2 g and the stage penalties' r nabla^2 r too (the
+            self-collision penalties stay Gauss-Newton). Both converge to the same KKT
+            points (the Hessian is not in the KKT conditions), but only the exact one
+            converges fast where penalties are active at the optimum: S1's exact phase with
+            the penalties' Gauss-Newton Hessian crawled (1000 iterations, scaled dual
+            infeasibility 1e-3 .. 1e-2, regularised in every iteration), and from where it
+            stopped the exact one converged in 107. On ``tiny`` the exact one is indefinite
+            (the products f dt and v dt of (1), the kinematics' trigonometry), IPOPT
+            regularised it in nearly every iteration (2.3 factorisations each) and took 148
+            iterations, 24 s, where Gauss-Newton takes 58, 4.6 s, to the same cost
+            (measured before the penalties' curvature was in it).
+        exact_after_iterations: With the ``gauss_newton`` Hessian: a solve that has not
+            converged after this many iterations goes on from its primal-dual point with the
+            ``exact`` one (assembled the first time it is needed), up to
+            ``max_iterations`` in all; None: Gauss-Newton throughout. Gauss-Newton leaves
+            out the constraints' curvature, and where that curvature matters IPOPT cycles
+            near the optimum: S2's pick alone (30 nodes) repeated one 100-iteration cycle
+            at cost 217.4 until iteration 500, where the exact Hessian converged in 86
+            (cost 213.5); on all of S2 (208 nodes) the exact Hessian from the start was at
+            cost 1.8e4 after 480 iterations, Gauss-Newton cycled at 2096 with a violation
+            of 1e-4 .. 1e-1, and 300 Gauss-Newton iterations then 68 exact ones converged
+            (cost 2096.4; measured before the trolley's collision boxes). ``tiny``
+            converges before the switch.
+    """
+
+    backend: str = "ipopt_mumps"
+    dt_bounds: list[float] = field(default_factory=lambda: [0.02, 0.08])
+    max_iterations: int = 500
+    tolerance: float = 1e-4
+    constraint_tolerance: float = 1e-8
+    compile: bool = True
+    compile_flags: list[str] = field(default_factory=lambda: ["-O1"])
+    print_level: int = 5
+    warm_start: bool = True
+    max_wall_time_s: float | None = None
+    hessian: str = "gauss_newton"
+    exact_after_iterations: int | None = 150
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if len(self.dt_bounds) != 2 or not 0.0 < self.dt_bounds[0] <= self.dt_bounds[1]:
+            errors.append(("dt_bounds", "needs [lower, upper] with 0 < lower <= upper [s]"))
+        if self.max_iterations < 1 or self.tolerance <= 0.0:
+            errors.append(("max_iterations", "needs max_iterations >= 1 and tolerance > 0"))
+        if self.constraint_tolerance <= 0.0:
+            errors.append(("constraint_tolerance", "must be > 0"))
+        if not 0 <= self.print_level <= 12:
+            errors.append(("print_level", "IPOPT's print level is 0..12"))
+        if self.backend not in BACKENDS:
+            errors.append(("backend", f"must be one of {sorted(BACKENDS)}"))
+        if self.max_wall_time_s is not None and not self.max_wall_time_s > 0.0:
+            errors.append(("max_wall_time_s", "must be > 0 s, or null for no limit"))
+        if self.hessian not in HESSIANS:
+            errors.append(("hessian", f"must be one of {list(HESSIANS)}"))
+        if self.exact_after_iterations is not None and self.exact_after_iterations < 1:
+            errors.append(("exact_after_iterations", "must be >= 1, or null for never"))
+        return errors
 
 
 @dataclass

@@ -29,7 +29,6 @@ import numpy as np
 
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
-from locoman.to.kinematics import rot_z
 
 # The links whose spheres the default self-collision pairs use; the pairs measured most in
 # MuJoCo replays of tiny: the arms against the torso and the hips. The knees against each
@@ -200,12 +199,6 @@ class Obstacle:
     def rotation(self) -> np.ndarray:
         return rpy_to_matrix(np.array([0.0, 0.0, self.yaw]))
 
-    def frame(self) -> tuple[ca.SX, ca.SX, ca.SX]:
-        """Centre (3,) [m], rotation (3, 3) and half sizes (3,) [m] as CasADi values,
-        whether the fields are numbers or the symbols of
-        :class:`locoman.to.parameters.SymbolicGlobals`."""
-        return column(self.centre), rot_z(self.yaw), column(self.half_extents)
-
 
 def column(x) -> ca.SX | ca.DM:
     """A CasADi column of numbers (DM) or of an expression (unchanged)."""
@@ -324,12 +317,11 @@ def penetration_residual(p: ca.SX, softness: float) -> ca.SX:
 _CORNER_SIGNS = [(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]
 
 
-def box_corners(half_extents) -> list[ca.SX | ca.DM]:
-    """The 8 corners (3,) of a box of ``half_extents`` (3,) [m] in its frame, which sits at
-    the bottom face's centre; numbers or CasADi expressions."""
-    half = column(half_extents)
-    lift = ca.vertcat(0.0, 0.0, half[2])
-    return [ca.DM(signs) * half + lift for signs in _CORNER_SIGNS]
+def box_corners(half_extents) -> np.ndarray:
+    """(8, 3) the corners of a box of ``half_extents`` (3,) [m] in its frame, which sits at
+    the bottom face's centre."""
+    half = np.asarray(half_extents, dtype=float).ravel()
+    return np.array(_CORNER_SIGNS) * half + np.array([0.0, 0.0, half[2]])
 
 
 def edge_point_counts(half_extents: np.ndarray, spacing: float) -> tuple[int, int, int]:
@@ -339,19 +331,19 @@ def edge_point_counts(half_extents: np.ndarray, spacing: float) -> tuple[int, in
     return tuple(int(np.ceil(2.0 * h / spacing)) + 1 for h in np.asarray(half_extents))
 
 
-def edge_points(obstacle: Obstacle, counts: tuple[int, int, int]) -> list[ca.SX | ca.DM]:
-    """World points (3,) along an obstacle's four vertical edges, from the top corners
+def edge_points(obstacle: Obstacle, counts: tuple[int, int, int]) -> np.ndarray:
+    """(n, 3) world points along an obstacle's four vertical edges, from the top corners
     down, and along its four top edges between those corners (:func:`edge_point_counts`):
     an edge that enters a carried box between the box's corners is caught by one of them,
     a table's leg and the rim of its top alike (a box lifted off a table and swung over
     the rim, its corners outside the top, was not caught by corners alone). The bottom
     edges lie on the floor, where a carried object does not go."""
-    centre, R, half = obstacle.frame()
     n_x, n_y, n_z = counts
     signs = [(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in np.linspace(1, -1, n_z)]
     signs += [(x, y, 1.0) for x in np.linspace(-1, 1, n_x)[1:-1] for y in (-1.0, 1.0)]
     signs += [(x, y, 1.0) for x in (-1.0, 1.0) for y in np.linspace(-1, 1, n_y)[1:-1]]
-    return [centre + R @ (ca.DM(sign) * half) for sign in signs]
+    local = np.array(signs) * np.asarray(obstacle.half_extents, dtype=float)
+    return np.asarray(obstacle.centre, dtype=float) + local @ obstacle.rotation.T
 
 
 @dataclasses.dataclass(frozen=True)

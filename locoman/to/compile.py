@@ -1,8 +1,9 @@
-"""The TO's derivative functions as generated C, compiled once per structure and cached.
+"""The TO's derivative functions as generated C, compiled once per robot and cached.
 
-A library is keyed by the hash of its C source, the compiler and the flags. Every number a
-sweep changes is an input of the functions (:mod:`locoman.to.parameters`), so the source,
-and the key, change only with the problem's structure. Each entry is ``to_<key>.so`` with
+A library is keyed by the hash of its C source, the compiler and the flags. The TO's terms
+take every number as an input and are called over index lists that are data
+(:mod:`locoman.to.assembly`), so their source, and the key, change only with the robot model
+and the kinds of terms: one set per robot. Each entry is ``to_<key>.so`` with
 ``to_<key>.json`` beside it (the library's size and SHA-256), written before the library
 is renamed into place: a library that does not match its record (a truncated copy, which
 would kill the process with SIGBUS on load) is rebuilt, never loaded.
@@ -39,6 +40,18 @@ import casadi as ca
 from locoman.errors import SolverError
 
 CACHE_ENV = "LOCOMAN_CACHE_DIR"
+
+
+def compiler(flags: Sequence[str]) -> str:
+    """The C compiler: ``$CC`` if set; else, for a build without optimisation (``-O0`` or no
+    ``-O``), Debian's ``tcc`` where it is installed (about 10x faster to compile than gcc,
+    slower code); else ``gcc``."""
+    if os.environ.get("CC"):
+        return os.environ["CC"]
+    optimised = any(f.startswith("-O") and f not in ("-O0", "-O") for f in flags)
+    if not optimised and shutil.which("tcc"):
+        return "tcc"
+    return "gcc"
 
 
 class SolverBuildError(SolverError):
@@ -124,20 +137,20 @@ def _ensure_built(
     jobs: int | None,
 ) -> list[Path]:
     """Each batch's library in ``directory``, compiled where none valid is there."""
-    compiler = os.environ.get("CC", "gcc")
-    units = [_unit(fns, compiler, flags) for fns in batches]
+    cc = compiler(flags)
+    units = [_unit(fns, cc, flags) for fns in batches]
     directory.mkdir(parents=True, exist_ok=True)
     library = {u.key: directory / f"to_{u.key}.so" for u in units}
     missing = list({u.key: u for u in units if not _valid(library[u.key])}.values())
     if missing:
-        if shutil.which(compiler) is None:
+        if shutil.which(cc) is None:
             raise SolverBuildError(
-                f"the TO compiles its derivatives to C, and the compiler {compiler!r} was not "
+                f"the TO compiles its derivatives to C, and the compiler {cc!r} was not "
                 "found. Install it (Debian/Ubuntu: `apt-get install gcc`; `make setup` does "
                 "so as root), or set solve.solver.compile=false to interpret them, several "
                 "times slower per iteration."
             )
-        _compile_all(missing, library, compiler, flags, jobs or os.cpu_count() or 1, directory)
+        _compile_all(missing, library, cc, flags, jobs or os.cpu_count() or 1, directory)
     return [library[u.key] for u in units]
 
 
@@ -187,7 +200,7 @@ _CODEGEN = inspect.getsource(_unit)
 
 
 def _index_path(directory: Path, recipe: Recipe, flags: Sequence[str]) -> Path:
-    parts = [recipe.fingerprint, os.environ.get("CC", "gcc"), *flags, ca.__version__, _CODEGEN]
+    parts = [recipe.fingerprint, compiler(flags), *flags, ca.__version__, _CODEGEN]
     key = hashlib.sha256("\0".join(parts).encode()).hexdigest()[:16]
     return directory / f"index_{key}.json"
 
@@ -245,7 +258,7 @@ def _compile_all(
     size = sum(len(u.source) for u in units) / 1e6
     print(
         f"[to] compiling {len(units)} libraries ({size:.1f} MB of C, {compiler} "
-        f"{' '.join(flags)}, {jobs} at a time) into {directory}; once per problem structure",
+        f"{' '.join(flags)}, {jobs} at a time) into {directory}; once per robot",
         flush=True,
     )
     tic = time.perf_counter()

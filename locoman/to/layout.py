@@ -41,7 +41,7 @@ KINEMATICS, N_KIN = _slices(
 
 # Points on the trunk kept out of the objects (``object_body``), with the radius of the
 # collision capsule around each [m]: link, offset in the link frame. The legs are their
-# capsules' sphere chains (``locoman.to.problem.LEG_LINKS``): a single sphere per link left
+# capsules' sphere chains (``locoman.to.spheres.LEG_LINKS``): a single sphere per link left
 # most of a thigh and a shin uncovered (S1's carried box went 5 cm into the hips unseen).
 BODY_POINTS = (
     ("pelvis", (0.0, 0.0, -0.07), 0.09),
@@ -66,8 +66,8 @@ class NodeLayout:
     its bottom centre); the slacks of (2a) and (4), per object the slack of its support's
     (2a); the homotopy parameter alpha of (13); the time step to the next node [s].
 
-    Parameters (so that one stage function serves every node of a mode and costs switch
-    without rebuilding): swing flags, the yaw reference [rad], the keyframe costs' switches
+    Parameters (the numbers that vary along the trajectory, which the transcription hands
+    the terms): swing flags, the yaw reference [rad], the keyframe costs' switches
     and references, the height of the surface under each foot [m], the hands' contact points
     and frames on the object they touch (its frame), per object the height of its support's
     surface [m] (in the supporting object's frame when it rests on one) and its goal.

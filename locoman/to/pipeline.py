@@ -23,17 +23,12 @@ from locoman.scene.rotations import matrix_to_rpy, quat_wxyz_to_matrix, rpy_to_m
 from locoman.sim.foxglove import scene_entities
 from locoman.to.collision import obstacles_from_objects
 from locoman.to.compile import cache_dir
+from locoman.to.inputs import Keyframe, TOInputs, object_pose
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import HANDS, ObjectModel
+from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
 from locoman.to.schedule import Schedule
 from locoman.to.supports import Chassis, OnObject, Support, Surface
-from locoman.to.trajopt import (
-    Keyframe,
-    TOInputs,
-    Trajectory,
-    TrajectoryOptimizer,
-    object_pose,
-)
 
 
 def start_configuration(scene_dir: Path) -> np.ndarray:
@@ -216,20 +211,13 @@ def object_goals(inputs: TOInputs, schedule: Schedule) -> tuple[np.ndarray, np.n
 
 
 def build_optimizer(inputs: TOInputs, cfg: SolveCfg) -> TrajectoryOptimizer:
-    """The TO of ``inputs`` with the settings of ``cfg`` (compiled, or loaded from the
-    cache, once per problem structure)."""
-    optimizer = TrajectoryOptimizer(
-        inputs,
-        cfg.schedule,
-        cfg.weights,
-        cfg.contact,
-        cfg.collision,
-        cfg.solver,
-        cache_dir(cfg.cache_dir),
-    )
+    """The TO of ``inputs`` with the settings of ``cfg`` (its terms compiled, or loaded from
+    the cache, once per robot)."""
+    optimizer = TrajectoryOptimizer(inputs, cfg, cache_dir(cfg.cache_dir))
     print(
         f"[solve] {optimizer.schedule.nodes} nodes, {optimizer.nlp.n_x} variables, "
-        f"{optimizer.nlp.n_g} constraints, built in {optimizer.nlp.build_time_s:.1f} s",
+        f"{optimizer.nlp.n_g} constraints, {len(optimizer.transcription.pairs)} collision "
+        f"pairs, built in {optimizer.build_time_s:.1f} s",
         flush=True,
     )
     return optimizer
@@ -242,7 +230,7 @@ def solve_scenario(
     failed solve is written too, with its status."""
     inputs = load_inputs(scene_dir, contacts_dir, retarget_dir, cfg.contacts)
     optimizer = build_optimizer(inputs, cfg)
-    traj = optimizer.solve((cfg.keyframe_base, cfg.keyframe_foot))
+    traj = optimizer.solve()
     write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir)
     return traj
 

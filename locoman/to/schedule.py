@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from locoman.errors import ConfigError
+from locoman.to.inputs import Keyframe, TOInputs, base_yaw, sole_points
 
 
 @dataclasses.dataclass
@@ -270,3 +271,38 @@ class Schedule:
             if any(self.phase(node).hands):
                 return node
         return None
+
+
+def push_steps(inputs: TOInputs, keyframe: Keyframe, cfg: ScheduleCfg) -> int:
+    """Steps of a ``push`` after its keyframe: each foot steps often enough to follow the
+    object from its keyframe pose to its goal with steps of at most ``step_length_m``."""
+    if keyframe.goal is None:
+        return 0
+    travel = float(np.linalg.norm(keyframe.goal[:2] - keyframe.object_poses[keyframe.object][:2]))
+    return 2 * math.ceil(travel / cfg.step_length_m)
+
+
+def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
+    """Phases of every subtask; steps where the keyframes' feet move (Sec. IV); a ``step``'s
+    two swings onto its object cover two of them."""
+    phases = []
+    feet_before, yaw_before = sole_points(inputs.q_start)[:, :2], base_yaw(inputs.q_start)
+    raised = False
+    for i, kf in enumerate(inputs.keyframes):
+        feet = sole_points(kf.q35)[:, :2]
+        steps = step_count(feet_before, feet, yaw_before, base_yaw(kf.q35), cfg)
+        if kf.predicate == "step":
+            steps = max(steps - 2, 0)
+        # Lead with the foot on the side the robot moves or turns to.
+        heading = np.array([math.cos(yaw_before), math.sin(yaw_before)])
+        move = feet.mean(axis=0) - feet_before.mean(axis=0)
+        lateral = heading[0] * move[1] - heading[1] * move[0]
+        turn = math.remainder(base_yaw(kf.q35) - yaw_before, math.tau)
+        first_right = (lateral + 0.3 * turn) < 0.0
+        pushed = push_steps(inputs, kf, cfg) if kf.predicate == "push" else 0
+        phases += subtask_phases(kf.predicate, i, steps, first_right, cfg, pushed, raised)
+        raised = raised or kf.predicate == "step"
+        feet_before, yaw_before = feet, base_yaw(kf.q35)
+        if pushed:  # the feet follow the object to its goal
+            feet_before = feet_before + (kf.goal[:2] - kf.object_poses[kf.object][:2])
+    return Schedule.from_phases(phases)

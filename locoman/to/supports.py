@@ -198,3 +198,7 @@ class Chassis(Support):
             f[2] * y - tau[0],
             f[2] * y + tau[0],
         )
+
+
+# Every support kind, for the compiled set of the TO's terms.
+SUPPORT_KINDS: tuple[type[Support], ...] = (Surface, OnObject, Chassis)

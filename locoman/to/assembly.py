@@ -1,0 +1,608 @@
+"""A sparse NLP assembled from compiled terms called over index lists.
+
+The TO is written as a few kinds of *terms* (:class:`Term`): small CasADi functions
+``F(x, p) -> (g, l, r)`` of a handful of decision variables ``x`` and numbers ``p``, each with
+constraint rows ``g``, a smooth cost ``l`` and residuals ``r`` whose squares are costs
+(the collision penalties (12)). A *block* (:class:`Block`) calls one term many times: for
+each call it names which entries of the NLP's decision vector make up ``x`` (a gather), the
+numbers ``p``, and the NLP's constraint rows that ``g`` adds to (a scatter; several blocks may
+add to the same rows, as every contact adds its wrench to a body's momentum rows (1a)).
+
+The terms' derivatives are compiled once per term kind (:func:`term_recipe`), whatever the
+scenario: which terms are called where, on which variables and with which numbers is data.
+The NLP's Jacobian, gradient and Hessian of the Lagrangian are the terms' own, scattered into
+IPOPT's sparse structure by constant index maps and summed where they land on the same entry
+(the chain rule of a gather is a scatter). So a new scenario, contact schedule or collision
+pair builds a new assembly (a second or so of graph building), and compiles nothing.
+
+The cost is sum l + ||r||^2. Per term the Hessian comes in two flavours:
+
+- ``gauss_newton``: sigma nabla^2 l + 2 sigma J_r' J_r, without the constraints' curvature;
+- ``exact``: sigma nabla^2 l + nabla^2 (lambda' g) + 2 sigma (J_r' J_r + sum_i r_i nabla^2 r_i),
+  but for terms whose residuals stay Gauss-Newton (:attr:`Term.exact_residuals` False).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import ctypes.util
+import dataclasses
+import hashlib
+import inspect
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sps
+
+from locoman.to.compile import Recipe, SolverBuildError, load_or_compile
+
+HESSIANS = ("gauss_newton", "exact")
+
+
+@dataclasses.dataclass(frozen=True)
+class Term:
+    """One kind of term: ``function(x, p) -> (g, l, r)``, SX, with the cost l + ||r||^2.
+
+    Attributes:
+        function: Inputs ``x`` (nx,) and ``p`` (np,); outputs ``g`` (ng,), ``l`` (1,) and
+            ``r`` (nr,).
+        exact_residuals: The exact Hessian includes the residuals' curvature sum r nabla^2 r;
+            False keeps them Gauss-Newton in both flavours.
+        lifts: Its rows are c - f(y) for x = (y, c): it defines the variables c (a lifted
+            kinematic quantity), which :func:`evaluate` at c = 0 gives as -g.
+    """
+
+    function: ca.Function
+    exact_residuals: bool = True
+    lifts: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.function.name()
+
+    @property
+    def nx(self) -> int:
+        return int(self.function.size1_in(0))
+
+    @property
+    def np(self) -> int:
+        return int(self.function.size1_in(1))
+
+    @property
+    def ng(self) -> int:
+        return int(self.function.size1_out(0))
+
+
+@dataclasses.dataclass(frozen=True)
+class Block:
+    """``n`` calls of one term.
+
+    Attributes:
+        term: The term.
+        x: (n, nx) int: the NLP variable of each local input, per call (no repeats in a call).
+        p: (n, np) float: the numbers of each call.
+        rows: (n, ng) int: the NLP constraint row each output row adds to.
+        defines: A lifting term (:attr:`Term.lifts`) whose lifted variables are not the
+            NLP's but virtual ones, indices from ``n_x`` on, defined by it: its rows are not
+            constraints, and the other terms' derivatives with respect to them reach the
+            NLP's variables by the chain rule (:class:`BlockNLP`). ``rows`` is empty.
+    """
+
+    term: Term
+    x: np.ndarray
+    p: np.ndarray
+    rows: np.ndarray
+    defines: bool = False
+
+    def __post_init__(self) -> None:
+        n = len(self.x)
+        shapes = {
+            "x": (self.x.shape, (n, self.term.nx)),
+            "p": (self.p.shape, (n, self.term.np)),
+            "rows": (self.rows.shape, (n, 0 if self.defines else self.term.ng)),
+        }
+        for name, (got, want) in shapes.items():
+            if got != want:
+                raise SolverBuildError(f"{self.term.name}: {name} has shape {got}, not {want}")
+        if self.defines and not self.term.lifts:
+            raise SolverBuildError(f"{self.term.name} lifts nothing: it cannot define variables")
+
+    @property
+    def calls(self) -> int:
+        return len(self.x)
+
+
+class RowSpace:
+    """The NLP's constraint rows, handed out with their bounds."""
+
+    def __init__(self) -> None:
+        self._lower: list[np.ndarray] = []
+        self._upper: list[np.ndarray] = []
+        self.size = 0
+
+    def allocate(self, calls: int, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """(calls, len(lower)) new rows, each call's with the bounds ``lower``, ``upper``."""
+        lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+        width = len(lower)
+        rows = self.size + np.arange(calls * width).reshape(calls, width)
+        self._lower.append(np.tile(lower, calls))
+        self._upper.append(np.tile(upper, calls))
+        self.size += calls * width
+        return rows
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self._lower:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate(self._lower), np.concatenate(self._upper)
+
+
+def term_derivatives(term: Term) -> tuple[tuple[ca.Function, ...], dict]:
+    """The compiled functions of one term, each mapped over calls by the assembly:
+    ``val`` (g, cost), ``jac`` (g, nz(J_g)), ``grad`` (cost, grad), ``hess_gn`` and
+    ``hess_exact`` (nz of the upper triangle, inputs x, p, lambda, sigma), and the
+    sparsity patterns of J_g and of each Hessian as JSON-able triplets."""
+    fn = term.function
+    x, p = ca.SX.sym("x", term.nx), ca.SX.sym("p", term.np)
+    lam, sigma = ca.SX.sym("lam", term.ng), ca.SX.sym("sigma")
+    g, smooth, residuals = fn(x, p)
+    cost = smooth + ca.sumsqr(residuals)
+    jac = ca.jacobian(g, x)
+    grad = ca.densify(ca.gradient(cost, x))
+    jac_r = ca.jacobian(residuals, x)
+    gauss_newton = ca.triu(ca.hessian(sigma * smooth, x)[0] + 2.0 * sigma * (jac_r.T @ jac_r))
+    if term.exact_residuals:
+        exact = ca.hessian(sigma * cost + ca.dot(lam, g), x)[0]
+    else:
+        exact = ca.hessian(sigma * smooth + ca.dot(lam, g), x)[0] + 2.0 * sigma * (jac_r.T @ jac_r)
+    exact = ca.triu(exact)
+    name = term.name
+    functions = (
+        ca.Function(f"{name}_val", [x, p], [g, cost]),
+        ca.Function(f"{name}_jac", [x, p], [g, ca.vertcat(*jac.nonzeros())]),
+        ca.Function(f"{name}_grad", [x, p], [cost, grad]),
+        ca.Function(f"{name}_hgn", [x, p, lam, sigma], [ca.vertcat(*gauss_newton.nonzeros())]),
+        ca.Function(f"{name}_hex", [x, p, lam, sigma], [ca.vertcat(*exact.nonzeros())]),
+    )
+    data = {
+        "jac": _triplet(jac.sparsity()),
+        "gauss_newton": _triplet(gauss_newton.sparsity()),
+        "exact": _triplet(exact.sparsity()),
+    }
+    return functions, data
+
+
+# A term's derivatives are a function of its function, its residual switch and of
+# term_derivatives' code: together they fingerprint its compiled library.
+_DERIVATION = inspect.getsource(term_derivatives)
+
+
+def _triplet(sp: ca.Sparsity) -> list:
+    rows, cols = sp.get_triplet()
+    return [sp.size1(), sp.size2(), list(rows), list(cols)]
+
+
+def term_recipe(term: Term) -> Recipe:
+    """The compiled derivatives of ``term`` as a cache recipe (:mod:`locoman.to.compile`)."""
+    parts = [term.function.serialize(), str(term.exact_residuals), _DERIVATION]
+    fingerprint = hashlib.sha256("\0".join(parts).encode()).hexdigest()
+    return Recipe(fingerprint, lambda: term_derivatives(term))
+
+
+@dataclasses.dataclass(frozen=True)
+class Derivatives:
+    """One term's derivative functions (compiled or interpreted) and their patterns."""
+
+    val: ca.Function
+    jac: ca.Function
+    grad: ca.Function
+    hess: dict[str, ca.Function]
+    jac_pattern: tuple[np.ndarray, np.ndarray]
+    hess_pattern: dict[str, tuple[np.ndarray, np.ndarray]]
+
+
+def _derivatives(functions: Sequence[ca.Function], data: dict) -> Derivatives:
+    val, jac, grad, hgn, hex_ = functions
+
+    def pattern(key: str) -> tuple[np.ndarray, np.ndarray]:
+        _, _, rows, cols = data[key]
+        return np.asarray(rows, dtype=int), np.asarray(cols, dtype=int)
+
+    return Derivatives(
+        val,
+        jac,
+        grad,
+        {"gauss_newton": hgn, "exact": hex_},
+        pattern("jac"),
+        {"gauss_newton": pattern("gauss_newton"), "exact": pattern("exact")},
+    )
+
+
+def load_derivatives(
+    terms: Sequence[Term], cache_dir: Path | None, flags: Sequence[str] = ("-O0",)
+) -> dict[str, Derivatives]:
+    """Every term's derivatives by name: compiled into (or loaded from) ``cache_dir``, one
+    library per term, or interpreted where ``cache_dir`` is None."""
+    names = [t.name for t in terms]
+    if len(set(names)) != len(names):
+        raise SolverBuildError(f"two terms share a name: {sorted(names)}")
+    if cache_dir is None:
+        made = [term_derivatives(t) for t in terms]
+    else:
+        made = load_or_compile([term_recipe(t) for t in terms], cache_dir, flags)
+    return {t.name: _derivatives(fns, data) for t, (fns, data) in zip(terms, made, strict=True)}
+
+
+@dataclasses.dataclass(frozen=True)
+class WarmStart:
+    """A primal-dual point of an NLP of the same structure to start IPOPT from: primal x,
+    bound multipliers lam_x, constraint multipliers lam_g."""
+
+    x: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+
+
+# IPOPT's warm start: the point is taken as it is, pushed off the bounds by little, and the
+# barrier starts small, as near an optimum it should.
+WARM_START_OPTIONS = {
+    "warm_start_init_point": "yes",
+    "warm_start_bound_push": 1e-6,
+    "warm_start_bound_frac": 1e-6,
+    "warm_start_slack_bound_push": 1e-6,
+    "warm_start_slack_bound_frac": 1e-6,
+    "warm_start_mult_bound_push": 1e-6,
+    "mu_init": 1e-4,
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class NLPResult:
+    """IPOPT's answer; ``status`` is its return status, ``timing`` its statistics [s]
+    (function evaluations, and the rest: mostly the linear algebra)."""
+
+    status: str
+    success: bool
+    iterations: int
+    x: np.ndarray
+    lam_g: np.ndarray
+    cost: float
+    max_constraint_violation: float
+    solve_time_s: float
+    lam_x: np.ndarray
+    function_time_s: float = 0.0
+
+    @property
+    def warm_start(self) -> WarmStart:
+        return WarmStart(self.x, self.lam_x, self.lam_g)
+
+
+def evaluate(block: Block, derivatives: dict[str, Derivatives], x: np.ndarray) -> np.ndarray:
+    """(n, ng) the rows of each call of ``block`` at the NLP's point ``x``."""
+    d = derivatives[block.term.name]
+    g, _ = d.val.map(block.calls)(x[block.x].T, block.p.T)
+    return np.asarray(g).T
+
+
+def structure_key(n_x: int, blocks: Sequence[Block]) -> str:
+    """What an assembled NLP depends on: the variables' count, and per block its term, which
+    variables each call takes and which rows it adds to (not the numbers ``p``)."""
+    digest = hashlib.sha256(str(n_x).encode())
+    for block in blocks:
+        digest.update(f"{block.term.name} {block.defines}".encode())
+        digest.update(np.ascontiguousarray(block.x, dtype=np.int64).tobytes())
+        digest.update(np.ascontiguousarray(block.rows, dtype=np.int64).tobytes())
+        digest.update(str(block.p.shape).encode())
+    return digest.hexdigest()
+
+
+def parameter_vector(blocks: Sequence[Block]) -> np.ndarray:
+    """The NLP's parameter vector: every block's numbers, call after call."""
+    parts = [np.asarray(b.p, dtype=float).ravel() for b in blocks]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+class BlockNLP:
+    """The NLP of ``blocks`` with its IPOPT solver, assembled once per structure.
+
+    Virtual variables y (indices ``n_x`` .. ``n_x + n_y`` of the blocks' ``x``) are functions
+    y = F(x) of the NLP's own, each defined by a block with ``defines`` (a robot sphere's
+    centre from q). Every other term is assembled over z = (x, y) as if y were variables,
+    and its derivatives reach x by the chain rule, with P = dz/dx = [I; dF/dx]:
+
+        J_x = J_z P,   grad_x = P' grad_z,   H_x = P' H_z P  (+ sum_i mu_i nabla^2 F_i),
+
+    (the identity block of P multiplied out by hand),
+    the last term, with mu = dL/dy, in the exact Hessian only (the Gauss-Newton one leaves it
+    out, as it leaves out every constraint's curvature). So a collision pair's term is a
+    small function of two sphere centres, and the NLP has no variable for them.
+
+    Args:
+        n_x: Decision variables.
+        blocks: The term calls.
+        rows: The constraint rows the blocks add to, with their bounds.
+        derivatives: Each block's term's derivatives, by name (:func:`load_derivatives`).
+        hessian: A key of :data:`HESSIANS`.
+        ipopt: IPOPT options.
+        n_y: Virtual variables.
+    """
+
+    def __init__(
+        self,
+        n_x: int,
+        blocks: Sequence[Block],
+        rows: RowSpace,
+        derivatives: dict[str, Derivatives],
+        hessian: str,
+        ipopt: dict,
+        n_y: int = 0,
+    ) -> None:
+        tic = time.perf_counter()
+        if hessian not in HESSIANS:
+            raise SolverBuildError(f"hessian must be one of {HESSIANS}, got {hessian!r}")
+        self.n_x, self.n_y, self.n_g = n_x, n_y, rows.size
+        self.lbg, self.ubg = rows.bounds()
+        self.key = structure_key(n_x + n_y, blocks)
+        self.n_p = sum(b.p.size for b in blocks)
+        X, P = ca.MX.sym("x", n_x), ca.MX.sym("p", self.n_p)
+        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.n_g)
+        offsets = np.cumsum([0] + [b.p.size for b in blocks])
+        params = {
+            id(b): P[int(a) : int(a) + b.p.size] for b, a in zip(blocks, offsets, strict=False)
+        }
+        defined = [b for b in blocks if b.defines and b.calls]
+        Z, prolong, definitions = self._virtual(X, defined, derivatives, params)
+        n_z = n_x + n_y
+        g_parts, g_rows, cost = [], [], 0
+        g_jac_parts, jac_parts, jac_rows, jac_cols = [], [], [], []
+        cost_grad, grad_parts, grad_cols = 0, [], []
+        hess_parts, hess_rows, hess_cols = [], [], []
+        for block in blocks:
+            if block.calls == 0 or block.defines:
+                continue
+            d = derivatives[block.term.name]
+            term, n = block.term, block.calls
+            xb = ca.reshape(Z[block.x.ravel().tolist()], term.nx, n)
+            pb = ca.reshape(params[id(block)], term.np, n)
+            g, l = d.val.map(n)(xb, pb)
+            cost += ca.sum2(l)
+            l_grad, gr = d.grad.map(n)(xb, pb)
+            cost_grad += ca.sum2(l_grad)
+            grad_parts.append(ca.vec(gr))
+            grad_cols.append(block.x.ravel())
+            if term.ng:
+                g_jac, jnz = d.jac.map(n)(xb, pb)
+                g_parts.append(ca.vec(g))
+                g_jac_parts.append(ca.vec(g_jac))
+                g_rows.append(block.rows.ravel())
+                jr, jc = d.jac_pattern
+                jac_parts.append(ca.vec(jnz))
+                jac_rows.append(block.rows[:, jr].ravel())
+                jac_cols.append(block.x[:, jc].ravel())
+            hr, hc = d.hess_pattern[hessian]
+            if len(hr):
+                lam = ca.reshape(lam_g[block.rows.ravel().tolist()], term.ng, n)
+                hnz = d.hess[hessian].map(n)(xb, pb, lam, ca.repmat(lam_f, 1, n))
+                hess_parts.append(ca.vec(hnz))
+                a, b = block.x[:, hr].ravel(), block.x[:, hc].ravel()
+                hess_rows.append(np.minimum(a, b))
+                hess_cols.append(np.maximum(a, b))
+        summed = _summed(np.concatenate(g_rows or [[]]).astype(int), self.n_g)
+        G = summed @ ca.vertcat(*g_parts) if g_parts else ca.MX(0, 1)
+        G_jac = summed @ ca.vertcat(*g_jac_parts) if g_parts else ca.MX(0, 1)
+        jac = _scattered(jac_parts, jac_rows, jac_cols, (self.n_g, n_z))
+        grad = _summed(np.concatenate(grad_cols), n_z) @ ca.vertcat(*grad_parts)
+        hess = _scattered(hess_parts, hess_rows, hess_cols, (n_z, n_z))
+        if n_y:
+            # The chain rule through y = F(x); with mu = dL/dy, the exact Hessian's
+            # sum_i mu_i nabla^2 F_i from each defining term's own Hessian with lambda = -mu
+            # (its rows are y - F(x)).
+            mu = lam_f * grad[n_x:] + ca.mtimes(jac[:, n_x:].T, lam_g)
+            jac = jac[:, :n_x] + ca.mtimes(jac[:, n_x:], prolong)
+            grad = grad[:n_x] + ca.mtimes(prolong.T, grad[n_x:])
+            full = ca.triu2symm(hess)
+            cross = ca.mtimes(full[:n_x, n_x:], prolong)
+            curvature_y = ca.mtimes(prolong.T, ca.mtimes(full[n_x:, n_x:], prolong))
+            hess = hess[:n_x, :n_x] + ca.triu(cross + cross.T) + ca.triu(curvature_y)
+            if hessian == "exact":
+                hess += self._curvature(definitions, derivatives, params, mu, lam_f, n_x)
+        # Dense: with a variable in no term (alpha without a homotopy kind) the gradient
+        # had a structural zero, and IPOPT's gradient-based scaling of the objective came
+        # out at its floor, 1e-8 instead of 0.3 on tiny: the solve diverged.
+        grad = ca.densify(grad)
+        self.oracles = {
+            "jac_g": ca.Function("jac_g", [X, P], [G_jac, jac], ["x", "p"], ["g", "jac_g_x"]),
+            "grad_f": ca.Function(
+                "grad_f", [X, P], [cost_grad, grad], ["x", "p"], ["f", "grad_f_x"]
+            ),
+            "hess_lag": ca.Function(
+                "hess_lag",
+                [X, P, lam_f, lam_g],
+                [hess],
+                ["x", "p", "lam_f", "lam_g"],
+                ["triu_hess_gamma_x_x"],
+            ),
+        }
+        self._problem = {"x": X, "p": P, "f": cost, "g": G}
+        self._options = dict(ipopt)
+        self.solver = self.ipopt(ipopt)
+        self._warm_solver: ca.Function | None = None
+        _single_threaded_blas()
+        self.build_time_s = time.perf_counter() - tic
+
+    def _virtual(self, X: ca.MX, defined: list[Block], derivatives, params) -> tuple:
+        """z = (x, y) with each virtual y = F(x) from its defining block, dy/dx, and per
+        defining block what its curvature term needs (inputs, y indices, mapped args)."""
+        n_x, n_y = self.n_x, self.n_y
+        if not n_y:
+            return X, None, []
+        y_parts, y_idx, jy_parts, jy_rows, jy_cols, definitions = [], [], [], [], [], []
+        for block in defined:
+            d, term, n = derivatives[block.term.name], block.term, block.calls
+            n_in = term.nx - term.ng
+            inputs, lifted = block.x[:, :n_in], block.x[:, n_in:] - n_x
+            if inputs.max(initial=-1) >= n_x or lifted.min(initial=0) < 0:
+                raise SolverBuildError(f"{term.name}: a virtual variable of real ones only")
+            # The rows are y - F(inputs): with y = 0 they are -F.
+            xb = ca.vertcat(
+                ca.reshape(X[inputs.ravel().tolist()], n_in, n), ca.MX.zeros(term.ng, n)
+            )
+            pb = ca.reshape(params[id(block)], term.np, n)
+            g, _ = d.val.map(n)(xb, pb)
+            y_parts.append(-ca.vec(g))
+            y_idx.append(lifted.ravel())
+            _, jnz = d.jac.map(n)(xb, pb)
+            jr, jc = d.jac_pattern
+            keep = np.flatnonzero(jc < n_in)
+            jy_parts.append(-ca.vec(jnz[keep.tolist(), :]))
+            jy_rows.append(lifted[:, jr[keep]].ravel())
+            jy_cols.append(inputs[:, jc[keep]].ravel())
+            definitions.append((block, xb, pb, inputs, lifted))
+        target = np.concatenate(y_idx)
+        if len(np.unique(target)) != len(target) or len(target) != n_y:
+            raise SolverBuildError("every virtual variable must be defined exactly once")
+        Y = _summed(target, n_y) @ ca.vertcat(*y_parts)
+        return ca.vertcat(X, Y), _scattered(jy_parts, jy_rows, jy_cols, (n_y, n_x)), definitions
+
+    def _curvature(self, definitions, derivatives, params, mu, lam_f, n_x: int) -> ca.MX:
+        """sum_i mu_i nabla^2 F_i(x), upper triangle, from the defining terms' Hessians."""
+        parts, rows, cols = [], [], []
+        for block, xb, pb, inputs, lifted in definitions:
+            d, term, n = derivatives[block.term.name], block.term, block.calls
+            hr, hc = d.hess_pattern["exact"]
+            n_in = term.nx - term.ng
+            keep = np.flatnonzero((hr < n_in) & (hc < n_in))
+            if not len(keep):
+                continue
+            lam = -ca.reshape(mu[lifted.ravel().tolist()], term.ng, n)
+            hnz = d.hess["exact"].map(n)(xb, pb, lam, ca.repmat(lam_f, 1, n))
+            parts.append(ca.vec(hnz[keep.tolist(), :]))
+            a, b = inputs[:, hr[keep]].ravel(), inputs[:, hc[keep]].ravel()
+            rows.append(np.minimum(a, b))
+            cols.append(np.maximum(a, b))
+        return _scattered(parts, rows, cols, (n_x, n_x))
+
+    def ipopt(self, options: dict) -> ca.Function:
+        """An IPOPT instance on this NLP's oracles with ``options``."""
+        opts = {"print_time": False, "calc_lam_p": False, "ipopt": options, **self.oracles}
+        return ca.nlpsol("to", "ipopt", self._problem, opts)
+
+    def solve(
+        self,
+        x0: np.ndarray,
+        lbx: np.ndarray,
+        ubx: np.ndarray,
+        p: np.ndarray,
+        warm: WarmStart | None = None,
+        limits: dict | None = None,
+    ) -> NLPResult:
+        """Solve from ``x0``, or from ``warm``'s primal-dual point (IPOPT's warm start), with
+        the numbers ``p`` (:func:`parameter_vector`); ``limits``: IPOPT options for this
+        solve only (``max_iter``, ``max_wall_time``). A failed solve is returned with
+        IPOPT's status, not raised."""
+        if p.shape != (self.n_p,):
+            raise SolverBuildError(f"p has shape {p.shape}; this NLP takes ({self.n_p},)")
+        args = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": self.lbg, "ubg": self.ubg, "p": p}
+        solver = self.solver
+        if warm is not None:
+            if warm.x.shape != (self.n_x,) or warm.lam_g.shape != (self.n_g,):
+                raise SolverBuildError("the warm start is of an NLP of another structure")
+            if self._warm_solver is None:
+                self._warm_solver = self.ipopt(self._options | WARM_START_OPTIONS)
+            solver = self._warm_solver
+            args |= {"x0": np.clip(warm.x, lbx, ubx), "lam_x0": warm.lam_x, "lam_g0": warm.lam_g}
+        if limits:
+            options = self._options | (WARM_START_OPTIONS if warm is not None else {})
+            solver = self.ipopt(options | limits)
+        tic = time.perf_counter()
+        with _heap_kept():
+            out = solver(**args)
+        elapsed = time.perf_counter() - tic
+        stats = solver.stats()
+        x = np.asarray(out["x"]).ravel()
+        g = np.asarray(out["g"]).ravel()
+        violation = max(
+            float(np.max(np.maximum(self.lbg - g, 0.0), initial=0.0)),
+            float(np.max(np.maximum(g - self.ubg, 0.0), initial=0.0)),
+            float(np.max(np.maximum(lbx - x, 0.0), initial=0.0)),
+            float(np.max(np.maximum(x - ubx, 0.0), initial=0.0)),
+        )
+        sys.stdout.flush()
+        functions = sum(
+            float(stats.get(f"t_wall_{name}", 0.0))
+            for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l")
+        )
+        return NLPResult(
+            status=str(stats["return_status"]),
+            success=bool(stats["success"]),
+            iterations=int(stats["iter_count"]),
+            x=x,
+            lam_g=np.asarray(out["lam_g"]).ravel(),
+            cost=float(out["f"]),
+            max_constraint_violation=violation,
+            solve_time_s=elapsed,
+            lam_x=np.asarray(out["lam_x"]).ravel(),
+            function_time_s=functions,
+        )
+
+
+def _summed(target: np.ndarray, size: int) -> ca.DM:
+    """Constant 0/1 matrix S (size, len(target)) with S[target[i], i] = 1: S @ values sums
+    the values that land on the same entry."""
+    source = np.arange(len(target))
+    mat = sps.csc_matrix((np.ones(len(target)), (target, source)), shape=(size, len(source)))
+    mat.sum_duplicates()
+    return ca.DM(ca.Sparsity(size, len(source), mat.indptr, mat.indices), mat.data)
+
+
+def _scattered(
+    parts: list[ca.MX], rows: list[np.ndarray], cols: list[np.ndarray], shape: tuple[int, int]
+) -> ca.MX:
+    """The sparse matrix whose nonzeros are ``parts`` at (rows, cols), summed where they
+    land on the same entry."""
+    if not parts:
+        return ca.MX(*shape)
+    r, c = np.concatenate(rows).astype(int), np.concatenate(cols).astype(int)
+    pattern, mapping = ca.Sparsity.triplet(shape[0], shape[1], r.tolist(), c.tolist(), True)
+    values = _summed(np.asarray(mapping, dtype=int), pattern.nnz()) @ ca.vertcat(*parts)
+    return ca.MX(pattern, values)
+
+
+def _single_threaded_blas() -> None:
+    """Run IPOPT's MUMPS on one thread of CasADi's OpenBLAS. With one per core, parallel
+    sums change the last bits of each factorisation and the iterates follow: on ``tiny``
+    2 threads took 808 iterations where 1 took 225, to the same optimum. One thread makes
+    the solve independent of the machine's core count, and on 2 cores it is faster."""
+    library = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
+    if library.is_file():
+        ctypes.CDLL(str(library)).openblas_set_num_threads(1)
+
+
+# glibc's mallopt parameters and their defaults.
+_M_TRIM_THRESHOLD, _M_MMAP_MAX = -1, -4
+_TRIM_DEFAULT, _MMAP_MAX_DEFAULT = 128 * 1024, 65536
+
+
+@contextlib.contextmanager
+def _heap_kept() -> Iterator[None]:
+    """Keep freed memory in the process while IPOPT runs. MUMPS allocates and frees its
+    work arrays at every factorisation; by default glibc maps large blocks afresh and gives
+    them back, and the kernel zeroes every page again: on ``tiny`` that was 7 s of 56 (sys
+    time and page faults). The iterates do not change. Elsewhere than glibc, a no-op."""
+    name = ctypes.util.find_library("c")
+    libc = ctypes.CDLL(name) if name else None
+    if libc is None or not hasattr(libc, "mallopt"):
+        yield
+        return
+    libc.mallopt(_M_MMAP_MAX, 0)
+    libc.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)
+    try:
+        yield
+    finally:
+        libc.mallopt(_M_MMAP_MAX, _MMAP_MAX_DEFAULT)
+        libc.mallopt(_M_TRIM_THRESHOLD, _TRIM_DEFAULT)
+        libc.malloc_trim(0)

@@ -1,0 +1,94 @@
+"""What the TO takes from a scenario: the robot's start, the movable objects, what they rest
+on, and one keyframe per subtask (:mod:`locoman.to.pipeline` reads them from the stages'
+artifacts)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from locoman.retarget.robot import contact_frames
+from locoman.scene import g1
+from locoman.scene.rotations import matrix_to_rpy
+from locoman.to.collision import Obstacle
+from locoman.to.layout import ObjectModel
+from locoman.to.supports import Support
+
+
+@dataclasses.dataclass(frozen=True)
+class Keyframe:
+    """What the TO takes from one subtask's keyframe.
+
+    Attributes:
+        predicate: The subtask's verb (``walk``, ``pick``, ``grab``, ``place``, ``push``,
+            ``step``).
+        q35: The retargeted configuration.
+        object: Index of the subtask's object in :attr:`TOInputs.objects`; None for a walk
+            towards a fixed object.
+        object_poses: (M, 6) every object's (p, rpy) in the keyframe [m, rad].
+        goal: (3,) x, y [m] and yaw [rad] the subtask's object must reach by the subtask's
+            end, or None.
+        support: What the object rests on once a ``place`` subtask sets it down (None for
+            the other predicates).
+        support_height: [m] that support's surface height (world z, or in the supporting
+            object's frame for :class:`OnObject`).
+        step_height: [m] world height of the top face a ``step`` puts the feet on.
+    """
+
+    predicate: str
+    q35: np.ndarray
+    object: int | None
+    object_poses: np.ndarray
+    goal: np.ndarray | None = None
+    support: Support | None = None
+    support_height: float = 0.0
+    step_height: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class TOInputs:
+    """A scenario, as the TO needs it.
+
+    Attributes:
+        q_start: (35,) the robot at rest at the start.
+        objects: The scene's movable objects.
+        object_starts: (M, 6) each object's (p, rpy) at the start.
+        supports: What each object rests on at the start.
+        support_heights: (M,) [m] the height of each of those supports' surface.
+        keyframes: One per subtask, in plan order.
+        hand_points: (M, 2, 3) left and right hand contacts in each object's frame [m].
+        hand_frames: (M, 2, 3, 3) their contact frames in the object's frame (z: outward
+            normal).
+        obstacles: The scene's fixed boxes (tables, shelves) for the collision terms.
+    """
+
+    q_start: np.ndarray
+    objects: tuple[ObjectModel, ...]
+    object_starts: np.ndarray
+    supports: tuple[Support, ...]
+    support_heights: np.ndarray
+    keyframes: Sequence[Keyframe]
+    hand_points: np.ndarray
+    hand_frames: np.ndarray
+    obstacles: tuple[Obstacle, ...] = ()
+
+
+def base_yaw(q35: np.ndarray) -> float:
+    return float(q35[5])
+
+
+def sole_points(q35: np.ndarray) -> np.ndarray:
+    """(2, 3) left and right sole centres [m] at a configuration."""
+    model = g1.g1_pinocchio_model()
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, g1.q35_to_pin(q35))
+    centre = contact_frames().sole["left_sole"]
+    return np.array([data.oMf[model.getFrameId(link)].act(centre) for link in g1.FOOT_LINKS])
+
+
+def object_pose(T: np.ndarray) -> np.ndarray:
+    """(6,) (p, rpy) of a 4x4 transform."""
+    return np.r_[T[:3, 3], matrix_to_rpy(T[:3, :3])]

@@ -1,0 +1,75 @@
+"""The per-node numbers of the TO: references and switches that vary along the trajectory
+(:attr:`locoman.to.layout.NodeLayout.parameters`): the yaw reference, the keyframe costs'
+switches and references (9), (10), the surface under each foot, the hands' contacts on the
+object they touch, each object's support height and goal."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from locoman.to.inputs import TOInputs, base_yaw, sole_points
+from locoman.to.layout import NodeLayout
+from locoman.to.modes import node_modes, stood_on, supports_per_node
+from locoman.to.schedule import Schedule
+
+
+def node_parameters(
+    inputs: TOInputs, schedule: Schedule, keyframe_costs: tuple[bool, bool]
+) -> np.ndarray:
+    """(n_params, N): references and switches per node.
+
+    The yaw reference goes linearly, over each subtask's nodes, from the previous keyframe's
+    yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes around
+    it (after the subtask's last step before it, before its next); ``keyframe_costs`` =
+    (base, foot) switches them. A
+    subtask's goal holds its object at the subtask's last node. The hands' contacts are
+    those on the object they touch, elsewhere on the first object a hand touches.
+    """
+    layout = NodeLayout.of(len(inputs.objects))
+    par, opar = layout.parameters, layout.object_parameters
+    n = schedule.nodes
+    P = np.zeros((layout.n_params, n))
+    kf_nodes = schedule.keyframe_nodes()
+    yaw_before = base_yaw(inputs.q_start)
+    for i, kf in enumerate(inputs.keyframes):
+        nodes = [k for k in range(1, n) if schedule.subtask_of(k) == i]
+        yaws = np.linspace(yaw_before, base_yaw(kf.q35), len(nodes) + 1)[1:]
+        P[par["yaw_ref"].start, nodes] = yaws
+        if i == 0:
+            P[par["yaw_ref"].start, 0] = yaw_before
+        yaw_before = base_yaw(kf.q35)
+        node = kf_nodes[i]
+        if keyframe_costs[0]:
+            P[par["kf_base_on"], node] = 1.0
+            P[par["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
+        if keyframe_costs[1]:
+            # The stance around the keyframe: after the last step before it, up to the next
+            # step (a push walks on after its keyframe).
+            swings = [k for k in nodes if not schedule.phase(k).stance]
+            after = max((k for k in swings if k < node), default=nodes[0] - 1)
+            until = min((k for k in swings if k > node), default=nodes[-1] + 1)
+            stance = [k for k in nodes if after < k < until]
+            P[par["kf_foot_on"], stance] = 1.0
+            P[par["kf_foot"], stance] = sole_points(kf.q35)[:, :2].mean(axis=0)[:, None]
+        if kf.goal is not None:
+            P[opar(kf.object, "goal"), nodes[-1]] = kf.goal
+            P[opar(kf.object, "goal_on"), nodes[-1]] = 1.0
+    for k, row in enumerate(supports_per_node(inputs, schedule)):
+        for j, (_, height) in enumerate(row):
+            P[opar(j, "support_z"), k] = height
+    surface = par["foot_surface_z"].start
+    for k in range(n):
+        phase, step = schedule.phase(k), stood_on(inputs, schedule.subtask_of(k))
+        for i in range(2):
+            # A raised foot stands on, or a swinging one lands on, the stepped-on top.
+            if phase.feet_raised[i] and step is not None:
+                P[surface + i, k] = step.step_height
+    modes = node_modes(inputs, schedule)
+    first = next((j for m in modes for j in m.hands if j is not None), 0)
+    points, frames = par["hand_points"].start, par["hand_frames"].start
+    for k, mode in enumerate(modes):
+        for i, j in enumerate(mode.hands):
+            j = first if j is None else j
+            P[points + 3 * i : points + 3 * i + 3, k] = inputs.hand_points[j, i]
+            P[frames + 9 * i : frames + 9 * i + 9, k] = inputs.hand_frames[j, i].ravel(order="F")
+    return P

@@ -1,0 +1,321 @@
+"""Paper A's whole-body TO of one scenario: the problem transcribed as term calls
+(:mod:`locoman.to.transcription`), assembled over the robot's compiled terms
+(:mod:`locoman.to.assembly`), and solved by IPOPT, first with the Gauss-Newton Hessian and,
+where that has not converged after ``exact_after_iterations``, on from its primal-dual point
+with the exact one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from locoman.config.to import BACKENDS, SolveCfg
+from locoman.to.assembly import (
+    BlockNLP,
+    NLPResult,
+    WarmStart,
+    evaluate,
+    load_derivatives,
+    parameter_vector,
+    structure_key,
+)
+from locoman.to.bounds import bounds, initial_guess
+from locoman.to.costs import averaged_over_nodes
+from locoman.to.inputs import TOInputs
+from locoman.to.modes import node_modes
+from locoman.to.node_parameters import node_parameters
+from locoman.to.schedule import build_schedule
+from locoman.to.supports import Support
+from locoman.to.terms.library import all_kinds, g1_terms
+from locoman.to.transcription import CollisionPair, Numbers, Transcription, transcribe
+
+KeyframeCosts = tuple[bool, bool]  # (9), (10) on
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """The TO's answer, per node (N nodes; dt[k] leads from node k to k + 1).
+
+    Every array is in world axes and SI units; ``q`` and ``object_q`` are (p, rpy).
+    """
+
+    status: str
+    success: bool
+    iterations: int
+    solve_time_s: float
+    build_time_s: float
+    function_time_s: float  # of ``solve_time_s``, IPOPT's calls of the NLP's functions
+    exact_iterations: int  # of ``iterations``, those with the exact Hessian
+    alpha_max: float  # the largest homotopy parameter alpha of (13) [-]; 0 without one
+    n_variables: int
+    n_constraints: int
+    max_constraint_violation: float
+    cost: float
+    q: np.ndarray  # (N, 35)
+    v: np.ndarray  # (N, 35)
+    foot_wrench: np.ndarray  # (N, 2, 6) force [N], moment [N m] at each sole centre
+    hand_wrench: np.ndarray  # (N, 2, 6) the touched object's wrench on each hand
+    object_q: np.ndarray  # (N, M, 6)
+    object_v: np.ndarray  # (N, M, 6)
+    support_wrench: np.ndarray  # (N, M, 6) at each object's frame origin
+    foot_slack: np.ndarray  # (N, 2) [m]
+    hand_slack: np.ndarray  # (N, 2, 3) [m]
+    support_slack: np.ndarray  # (N, M) [m]
+    dt: np.ndarray  # (N,) [s]; the last is unused
+    feet_contact: np.ndarray  # (N, 2) bool
+    foot_object: np.ndarray  # (N, 2) index of the object a foot stands on, -1: the ground
+    hand_object: np.ndarray  # (N, 2) index of the object each hand touches, -1: none
+    object_active: np.ndarray  # (N, M) bool
+    support_kind: np.ndarray  # (N, M) str: a Support's name, "none" while carried
+    support_base: np.ndarray  # (N, M) int: the supporting object, -1: the world
+    phase: np.ndarray  # (N,) str
+    subtask: np.ndarray  # (N,) int
+    hand_points: np.ndarray  # (M, 2, 3) hand contacts in each object's frame [m]
+    collision_pairs: int = 0  # collision terms in the problem (over all nodes)
+    warm_start: WarmStart | None = None  # the primal-dual point, for the next grid cell
+
+    @property
+    def time(self) -> np.ndarray:
+        """(N,) time of each node [s]."""
+        return np.r_[0.0, np.cumsum(self.dt[:-1])]
+
+
+def _base_index(support: Support | None) -> int:
+    """The supporting object's index, -1 for the world or none."""
+    base = getattr(support, "base", None)
+    return -1 if base is None else base
+
+
+class TrajectoryOptimizer:
+    """The TO of one scenario. Its terms are the robot's compiled set (built, or loaded
+    from ``cache_dir``, the first time); a solve transcribes the problem as data and
+    reassembles the NLP only where its structure changed (another collision set, other
+    keyframe switches need none: they are numbers).
+
+    Args:
+        inputs: The scenario.
+        cfg: The ``solve`` section: schedule, weights, contact, collision, solver.
+        cache_dir: Where compiled terms are cached (``solver.compile``); None interprets them.
+    """
+
+    def __init__(self, inputs: TOInputs, cfg: SolveCfg, cache_dir: Path | None) -> None:
+        tic = time.perf_counter()
+        self.inputs, self.cfg = inputs, cfg
+        self.schedule = build_schedule(inputs, cfg.schedule)
+        self.modes = node_modes(inputs, self.schedule)
+        weights = cfg.weights
+        if weights.average_over_nodes:
+            weights = averaged_over_nodes(weights, self.schedule.nodes)
+        self.numbers = Numbers(
+            weights, cfg.contact, cfg.collision, inputs.objects, inputs.obstacles
+        )
+        self.robot = g1_terms()
+        compiled = cache_dir if cfg.solver.compile else None
+        self.derivatives = load_derivatives(
+            [k.term for k in all_kinds(self.robot)], compiled, cfg.solver.compile_flags
+        )
+        solver = cfg.solver
+        self._ipopt = {
+            **BACKENDS[solver.backend],
+            "max_iter": solver.max_iterations,
+            "tol": solver.tolerance,
+            "constr_viol_tol": solver.constraint_tolerance,
+            "print_level": solver.print_level,
+            "print_frequency_iter": 1,
+            "sb": "yes",
+            "mu_strategy": "adaptive",
+            "fixed_variable_treatment": "make_parameter",
+        }
+        if solver.max_wall_time_s is not None:
+            self._ipopt["max_wall_time"] = float(solver.max_wall_time_s)
+        exact = solver.hessian == "exact"
+        self.switch_at = None if exact else solver.exact_after_iterations
+        if self.switch_at is not None and self.switch_at >= solver.max_iterations:
+            self.switch_at = None
+        self._nlps: dict[tuple[str, str], BlockNLP] = {}
+        self.transcription = self.transcribe(self.keyframe_costs)
+        self.nlp = self._nlp(self.transcription, solver.hessian)
+        self._built_s = time.perf_counter() - tic
+
+    @property
+    def keyframe_costs(self) -> KeyframeCosts:
+        return (self.cfg.keyframe_base, self.cfg.keyframe_foot)
+
+    @property
+    def build_time_s(self) -> float:
+        """Time spent building: loading (or compiling) the terms, transcribing, assembling
+        the NLPs so far [s]."""
+        return (
+            self._built_s
+            + sum(nlp.build_time_s for nlp in self._nlps.values())
+            - (self.nlp.build_time_s)
+        )
+
+    def transcribe(
+        self,
+        keyframe_costs: KeyframeCosts,
+        numbers: Numbers | None = None,
+        pairs: list[CollisionPair] | None = None,
+    ) -> Transcription:
+        """The problem as data with these switches and numbers (default: the optimizer's)."""
+        numbers = numbers or self.numbers
+        inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
+        P = node_parameters(inputs, self.schedule, keyframe_costs)
+        return transcribe(self.modes, P, numbers, self.robot, pairs)
+
+    def _nlp(
+        self, transcription: Transcription, hessian: str, limits: dict | None = None
+    ) -> BlockNLP:
+        """The assembled NLP of ``transcription``'s structure, reused where it is known."""
+        key = (structure_key(transcription.n_x + transcription.n_y, transcription.blocks), hessian)
+        if key not in self._nlps:
+            first = (
+                {} if self.switch_at is None or hessian == "exact" else {"max_iter": self.switch_at}
+            )
+            self._nlps[key] = BlockNLP(
+                transcription.n_x,
+                transcription.blocks,
+                transcription.rows,
+                self.derivatives,
+                hessian,
+                self._ipopt | first,
+                transcription.n_y,
+            )
+        return self._nlps[key]
+
+    def solve(
+        self,
+        keyframe_costs: KeyframeCosts | None = None,
+        numbers: Numbers | None = None,
+        warm_start: Trajectory | None = None,
+        pairs: list[CollisionPair] | None = None,
+    ) -> Trajectory:
+        """Solve; a failed solve is a trajectory with ``success`` False, not an exception.
+
+        Args:
+            keyframe_costs: (9), (10) on; default: the configuration's.
+            numbers: Other weights, objects' masses, frictions (another grid cell); the
+                assembled NLP is reused where the structure is the same.
+            warm_start: A solution of the same structure (another cell of a grid): IPOPT
+                starts from its primal-dual point instead of Sec. IV-C.2's guess.
+            pairs: The collision pairs; default: the configuration's.
+        """
+        keyframe_costs = keyframe_costs or self.keyframe_costs
+        numbers = numbers or self.numbers
+        tic = time.perf_counter()
+        tr = self.transcribe(keyframe_costs, numbers, pairs)
+        hessian = self.cfg.solver.hessian
+        nlp = self._nlp(tr, hessian)
+        transcribed_s = time.perf_counter() - tic
+        inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
+        homotopy = self.cfg.collision.homotopy
+        layout, schedule, modes = tr.layout, self.schedule, self.modes
+        lo, hi = bounds(
+            layout, inputs, schedule, modes, self.cfg.solver, homotopy, self.cfg.schedule.end_lift_m
+        )
+        X0 = initial_guess(
+            layout, inputs, schedule, modes, self.cfg.solver, self.robot.mass, homotopy
+        )
+        X0 = np.clip(X0, lo, hi)
+        X0 = self._lifted(X0, tr)
+        p = parameter_vector(tr.blocks)
+        args = (X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), p)
+        warm = warm_start.warm_start if warm_start is not None else None
+        result = nlp.solve(*args, warm)
+        if result.success or self.switch_at is None or result.iterations < self.switch_at:
+            return self._trajectory(result, tr, nlp, transcribed_s)
+        # Gauss-Newton used its share of the iterations without converging: the exact
+        # Hessian goes on from its primal-dual point with what is left.
+        limits = {"max_iter": self.cfg.solver.max_iterations - result.iterations}
+        if self.cfg.solver.max_wall_time_s is not None:
+            limits["max_wall_time"] = max(
+                self.cfg.solver.max_wall_time_s - result.solve_time_s, 1.0
+            )
+        print(
+            f"[solve] not converged after {result.iterations} Gauss-Newton iterations "
+            f"({result.status}): on with the exact Hessian",
+            flush=True,
+        )
+        exact = self._nlp(tr, "exact")
+        polished = exact.solve(*args, result.warm_start, limits)
+        return self._trajectory(polished, tr, nlp, transcribed_s, before=result)
+
+    def _lifted(self, X0: np.ndarray, tr: Transcription) -> np.ndarray:
+        """The guess with its lifted variables at their values at its q and v."""
+        x = tr.lift(X0.ravel(order="F"), lambda block, x: evaluate(block, self.derivatives, x))
+        return x.reshape(X0.shape, order="F")
+
+    def _trajectory(
+        self,
+        result: NLPResult,
+        tr: Transcription,
+        nlp: BlockNLP,
+        transcribed_s: float,
+        before: NLPResult | None = None,
+    ) -> Trajectory:
+        """The trajectory of ``result``; ``before``: the Gauss-Newton phase it went on from."""
+        n, layout = self.schedule.nodes, tr.layout
+        Z = result.x.reshape(n, layout.width)
+
+        def part(name: str) -> np.ndarray:
+            return Z[:, layout.variables[name]]
+
+        def per_object(quantity: str) -> np.ndarray:
+            return np.stack(
+                [Z[:, layout.object_variables(j, quantity)] for j in range(layout.n_objects)],
+                axis=1,
+            )
+
+        objects = [m.objects for m in self.modes]
+        phases = [self.schedule.phase(k).name if k > 0 else "start" for k in range(n)]
+        exact_iterations = (
+            result.iterations if before is not None or self.cfg.solver.hessian == "exact" else 0
+        )
+        return Trajectory(
+            status=result.status,
+            success=result.success,
+            iterations=result.iterations + (before.iterations if before else 0),
+            solve_time_s=result.solve_time_s + (before.solve_time_s if before else 0.0),
+            build_time_s=self.build_time_s + transcribed_s,
+            function_time_s=result.function_time_s + (before.function_time_s if before else 0.0),
+            exact_iterations=exact_iterations,
+            alpha_max=float(part("alpha").max()),
+            n_variables=nlp.n_x,
+            n_constraints=nlp.n_g,
+            max_constraint_violation=result.max_constraint_violation,
+            cost=result.cost,
+            q=part("q"),
+            v=part("v"),
+            foot_wrench=part("foot_wrench").reshape(n, 2, 6),
+            hand_wrench=part("hand_wrench").reshape(n, 2, 6),
+            object_q=per_object("q"),
+            object_v=per_object("v"),
+            support_wrench=per_object("support_wrench"),
+            foot_slack=part("foot_slack"),
+            hand_slack=part("hand_slack").reshape(n, 2, 3),
+            support_slack=per_object("support_slack")[:, :, 0],
+            dt=part("dt")[:, 0],
+            feet_contact=np.array([m.feet for m in self.modes]),
+            foot_object=np.array(
+                [[-1 if j is None else j for j in m.feet_on] for m in self.modes], dtype=int
+            ),
+            hand_object=np.array(
+                [[-1 if j is None else j for j in m.hands] for m in self.modes], dtype=int
+            ),
+            object_active=np.array([[o.active for o in row] for row in objects]),
+            support_kind=np.array(
+                [[o.support.name if o.support else "none" for o in row] for row in objects]
+            ),
+            support_base=np.array(
+                [[_base_index(o.support) for o in row] for row in objects], dtype=int
+            ),
+            phase=np.array(phases),
+            subtask=np.array([self.schedule.subtask_of(k) for k in range(n)]),
+            hand_points=self.inputs.hand_points.copy(),
+            collision_pairs=len(tr.pairs),
+            warm_start=result.warm_start,
+        )

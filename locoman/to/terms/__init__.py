@@ -1,0 +1,150 @@
+"""The kinds of terms paper A's TO is made of, each one small compiled function.
+
+A :class:`TermKind` names the slices of its inputs (``x``: decision variables, gathered per
+call; ``p``: numbers) and builds its rows and costs from them. The modules here define the
+kinds by what they are about: the robot's kinematics and collision spheres
+(:mod:`.kinematics`), the dynamics (1) of every body and the wrenches contacts exchange
+(:mod:`.dynamics`), the contacts (2)-(5) and friction cones (3) (:mod:`.contacts`), the
+supports of objects (:mod:`.supports`), the costs of Table I, (9), (10) (:mod:`.costs`) and
+the collision terms (11)-(13) (:mod:`.collisions`). Which kinds are called where, on which
+variables and with which numbers, is :mod:`locoman.to.transcription`'s business: data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+
+import casadi as ca
+import numpy as np
+
+from locoman.to.assembly import Block, RowSpace, Term
+from locoman.to.compile import SolverBuildError
+
+
+@dataclasses.dataclass(frozen=True)
+class Rows:
+    """What a term kind's body returns: equality rows (= 0), inequality rows (>= 0), the
+    smooth cost and the residuals (the cost's ||r||^2 part)."""
+
+    equalities: Sequence[ca.SX] = ()
+    inequalities: Sequence[ca.SX] = ()
+    cost: ca.SX | float = 0.0
+    residuals: Sequence[ca.SX] = ()
+
+
+class Symbols:
+    """A term's inputs by name: ``s["q"]`` is the slot's SX column."""
+
+    def __init__(self, name: str, slots: Mapping[str, int]) -> None:
+        self.vector = ca.SX.sym(name, sum(slots.values()))
+        self.slices: dict[str, slice] = {}
+        start = 0
+        for slot, size in slots.items():
+            self.slices[slot] = slice(start, start + size)
+            start += size
+
+    def __getitem__(self, slot: str) -> ca.SX:
+        return self.vector[self.slices[slot]]
+
+
+@dataclasses.dataclass(frozen=True)
+class TermKind:
+    """A compiled term with named input slots.
+
+    Attributes:
+        term: The function ``(x, p) -> (g, l, r)``.
+        x_slots, p_slots: slot -> size, in input order.
+        lower, upper: Bounds of its rows when it owns them (equalities first, then the
+            inequalities).
+    """
+
+    term: Term
+    x_slots: dict[str, int]
+    p_slots: dict[str, int]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def name(self) -> str:
+        return self.term.name
+
+
+def term_kind(
+    name: str,
+    x: Mapping[str, int],
+    p: Mapping[str, int],
+    body: Callable[[Symbols, Symbols], Rows],
+    exact_residuals: bool = True,
+    lifts: bool = False,
+) -> TermKind:
+    """A term kind from its slots and a ``body(x, p) -> Rows`` on their symbols; ``lifts``:
+    see :attr:`locoman.to.assembly.Term.lifts` (its last slot is what it lifts)."""
+    xs, ps = Symbols("x", x), Symbols("p", p)
+    out = body(xs, ps)
+    eq = ca.vertcat(*out.equalities) if out.equalities else ca.SX(0, 1)
+    ineq = ca.vertcat(*out.inequalities) if out.inequalities else ca.SX(0, 1)
+    residuals = ca.vertcat(*out.residuals) if out.residuals else ca.SX(0, 1)
+    cost = ca.SX(out.cost) if not isinstance(out.cost, ca.SX) else out.cost
+    fn = ca.Function(name, [xs.vector, ps.vector], [ca.vertcat(eq, ineq), cost, residuals])
+    lower = np.zeros(eq.numel() + ineq.numel())
+    upper = np.r_[np.zeros(eq.numel()), np.full(ineq.numel(), np.inf)]
+    return TermKind(Term(fn, exact_residuals, lifts), dict(x), dict(p), lower, upper)
+
+
+class Calls:
+    """The calls of one term kind, added one by one, then a :class:`Block`.
+
+    ``add(x={slot: variable indices}, p={slot: numbers})`` takes every slot of the kind.
+    """
+
+    def __init__(self, kind: TermKind) -> None:
+        self.kind = kind
+        self._x: list[np.ndarray] = []
+        self._p: list[np.ndarray] = []
+
+    def __len__(self) -> int:
+        return len(self._x)
+
+    def add(self, x: Mapping[str, object], p: Mapping[str, object] | None = None) -> None:
+        self._x.append(_joined(self.kind.name, "x", self.kind.x_slots, x, int))
+        self._p.append(_joined(self.kind.name, "p", self.kind.p_slots, p or {}, float))
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(calls, nx) variable indices, (calls, np) numbers."""
+        n = len(self._x)
+        x = np.array(self._x, dtype=int).reshape(n, self.kind.term.nx)
+        p = np.array(self._p, dtype=float).reshape(n, self.kind.term.np)
+        return x, p
+
+    def own(self, rows: RowSpace) -> Block:
+        """The block, its rows new (with the kind's bounds)."""
+        x, p = self.arrays()
+        owned = rows.allocate(len(x), self.kind.lower, self.kind.upper)
+        return Block(self.kind.term, x, p, owned)
+
+    def onto(self, targets: list[np.ndarray]) -> Block:
+        """The block, each call's rows adding to existing ``targets[call]``."""
+        x, p = self.arrays()
+        width = self.kind.term.ng
+        target = np.array(targets, dtype=int).reshape(len(x), width)
+        return Block(self.kind.term, x, p, target)
+
+    def costs(self) -> Block:
+        """The block of a kind without rows."""
+        x, p = self.arrays()
+        return Block(self.kind.term, x, p, np.zeros((len(x), 0), dtype=int))
+
+
+def _joined(name: str, what: str, slots: Mapping[str, int], values: Mapping, dtype) -> np.ndarray:
+    missing = sorted(set(slots) - set(values))
+    extra = sorted(set(values) - set(slots))
+    if missing or extra:
+        raise SolverBuildError(f"{name}: {what} slots missing {missing}, unknown {extra}")
+    parts = []
+    for slot, size in slots.items():
+        value = np.atleast_1d(np.asarray(values[slot], dtype=dtype)).ravel(order="F")
+        if value.size != size:
+            raise SolverBuildError(f"{name}: {what} slot {slot!r} has {value.size}, not {size}")
+        parts.append(value)
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=dtype)

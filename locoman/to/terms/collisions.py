@@ -1,0 +1,124 @@
+"""The collision terms of paper A, Sec. IV-D, as term kinds: one per pair geometry and
+treatment, each evaluated over a list of pairs that is data (:mod:`locoman.to.collision`
+holds the geometry).
+
+Geometries (what is kept out of what):
+
+- ``sphere_sphere``: two robot spheres (lifted centres), d = |a - b| / (r_a + r_b + margin);
+- ``sphere_object_box``: a robot sphere and a box fixed in a moving object's frame;
+- ``sphere_fixed_box``: a robot sphere and a fixed box (an obstacle);
+- ``object_point_fixed_box``: a point fixed in a moving object (a carried box's corner) and
+  a fixed box;
+- ``fixed_point_object_box``: a fixed point (on an obstacle's edge) and a box fixed in a
+  moving object.
+
+Treatments (:data:`locoman.to.collision.TREATMENTS`): ``penalty`` (12), a residual
+sqrt(w) min(p, 0) smoothed; ``constraint`` (11), p >= 0; ``homotopy`` (13a),
+alpha p~ + (1 - alpha) p >= 0 from the box's smooth stand-in p~, with (13b)'s
+sqrt(w_hom) alpha once per node (:func:`homotopy_weight_kind`).
+"""
+
+from __future__ import annotations
+
+import functools
+from types import SimpleNamespace
+
+import casadi as ca
+
+from locoman.to.collision import (
+    penetration_residual,
+    sphere_box_penetration,
+    sphere_ellipsoid_penetration,
+    sphere_sphere_penetration,
+)
+from locoman.to.kinematics import rot_z, rpy_matrix
+from locoman.to.terms import Rows, TermKind, term_kind
+
+# The numbers of a box clearance (:func:`sphere_box_penetration`): margin [m] (a touching
+# pair's is the least), log-sum-exp smoothing [m], length L [m].
+BOX_NUMBERS = {"margin": 1, "smoothing": 1, "length": 1}
+PENALTY_NUMBERS = {"weight": 1, "softness": 1}
+
+# geometry -> (x slots, p slots); ``c``: a robot sphere's lifted centre.
+GEOMETRIES: dict[str, tuple[dict[str, int], dict[str, int]]] = {
+    "sphere_sphere": ({"a": 3, "b": 3}, {"radius": 1}),
+    "sphere_object_box": ({"c": 3, "q_o": 6}, {"radius": 1, "centre": 3, "half": 3}),
+    "sphere_fixed_box": ({"c": 3}, {"radius": 1, "centre": 3, "yaw": 1, "half": 3}),
+    "object_point_fixed_box": ({"q_o": 6}, {"point": 3, "centre": 3, "yaw": 1, "half": 3}),
+    "fixed_point_object_box": ({"q_o": 6}, {"point": 3, "centre": 3, "half": 3}),
+}
+
+
+def _object_frame(q: ca.SX) -> tuple[ca.SX, ca.SX]:
+    return q[0:3], rpy_matrix(q[3:6])
+
+
+def _sphere_and_box(geometry: str, x, p) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
+    """Sphere centre [m], radius [m], box centre [m], rotation, half sizes [m]."""
+    if geometry == "sphere_object_box":
+        origin, R = _object_frame(x["q_o"])
+        return x["c"], p["radius"], origin + R @ p["centre"], R, p["half"]
+    if geometry == "sphere_fixed_box":
+        return x["c"], p["radius"], p["centre"], rot_z(p["yaw"]), p["half"]
+    if geometry == "object_point_fixed_box":
+        origin, R = _object_frame(x["q_o"])
+        return origin + R @ p["point"], 0.0, p["centre"], rot_z(p["yaw"]), p["half"]
+    origin, R = _object_frame(x["q_o"])
+    return p["point"], 0.0, origin + R @ p["centre"], R, p["half"]
+
+
+def _penetration(geometry: str, x, p) -> ca.SX:
+    """p of (11)."""
+    if geometry == "sphere_sphere":
+        return sphere_sphere_penetration(x["a"], x["b"], p["radius"])
+    centre, radius, box, R, half = _sphere_and_box(geometry, x, p)
+    cfg = SimpleNamespace(margin_m=p["margin"], smoothing_m=p["smoothing"], length_m=p["length"])
+    return sphere_box_penetration(centre, radius, box, R, half, cfg)
+
+
+def _stand_in(geometry: str, x, p) -> ca.SX:
+    """p~ of (13a): the box's smooth stand-in, grown by the collision margin (not a
+    touching pair's least one)."""
+    centre, radius, box, R, half = _sphere_and_box(geometry, x, p)
+    cfg = SimpleNamespace(margin_m=p["stand_in_margin"])
+    return sphere_ellipsoid_penetration(centre, radius, box, R, half, cfg)
+
+
+@functools.cache
+def collision_kind(geometry: str, treatment: str) -> TermKind:
+    """The term of one pair ``geometry`` under ``treatment``."""
+    x_slots, p_slots = (dict(s) for s in GEOMETRIES[geometry])
+    if geometry != "sphere_sphere":
+        p_slots |= BOX_NUMBERS
+    if treatment == "penalty":
+        p_slots |= PENALTY_NUMBERS
+    if treatment == "homotopy":
+        if geometry == "sphere_sphere":
+            raise ValueError("spheres are their own smooth stand-in: no homotopy")
+        x_slots |= {"alpha": 1}
+        p_slots |= {"stand_in_margin": 1}
+
+    def body(x, p) -> Rows:
+        penetration = _penetration(geometry, x, p)
+        if treatment == "penalty":
+            residual = ca.sqrt(p["weight"]) * penetration_residual(penetration, p["softness"])
+            return Rows(residuals=[residual])
+        if treatment == "constraint":
+            return Rows(inequalities=[penetration])
+        alpha, stand_in = x["alpha"], _stand_in(geometry, x, p)
+        return Rows(inequalities=[alpha * stand_in + (1.0 - alpha) * penetration])
+
+    # Sphere pairs' penalties stay Gauss-Newton with the exact Hessian too (the robot's own
+    # links, active at many nodes at once: their curvature made IPOPT regularise).
+    exact = geometry != "sphere_sphere"
+    return term_kind(f"{geometry}_{treatment}", x_slots, p_slots, body, exact_residuals=exact)
+
+
+@functools.cache
+def homotopy_weight_kind() -> TermKind:
+    """(13b): sqrt(w_hom) alpha, the residual whose square drives alpha to zero."""
+
+    def body(x, p) -> Rows:
+        return Rows(residuals=[ca.sqrt(p["weight"]) * x["alpha"]])
+
+    return term_kind("homotopy_weight", {"alpha": 1}, {"weight": 1}, body)

@@ -1,0 +1,93 @@
+"""Every term kind of the TO for one robot: what is compiled, once, whatever the scenario.
+
+The robot's kinematics and its links' sphere chains depend on the robot model; every other
+kind is geometry and physics with its numbers as inputs. Building the library compiles (or
+loads from the cache) all of them, so that a new scenario, schedule, collision pair or
+treatment afterwards compiles nothing.
+"""
+
+from __future__ import annotations
+
+import functools
+
+from locoman.retarget.robot import contact_frames
+from locoman.scene import g1
+from locoman.to.collision import TREATMENTS, link_spheres
+from locoman.to.kinematics import SymbolicKinematics
+from locoman.to.supports import SUPPORT_KINDS
+from locoman.to.terms import TermKind
+from locoman.to.terms.collisions import GEOMETRIES, collision_kind, homotopy_weight_kind
+from locoman.to.terms.contacts import (
+    ONSETS,
+    foot_cone_kind,
+    foot_patch_kind,
+    hand_contact_kind,
+    object_face_cone_kind,
+)
+from locoman.to.terms.costs import (
+    keyframe_base_kind,
+    keyframe_foot_kind,
+    object_pose_kind,
+    regularization_kind,
+    squared_kind,
+    stance_kind,
+    walking_kind,
+)
+from locoman.to.terms.dynamics import (
+    object_step_kind,
+    robot_step_kind,
+    same_object_wrench_kind,
+    wrench_kind,
+)
+from locoman.to.terms.kinematics import frame_point_kind, kinematics_kind, link_spheres_kind
+from locoman.to.terms.supports import support_contact_kind, support_wrench_kind
+from locoman.to.transcription import RobotTerms
+
+
+def collision_links() -> tuple[str, ...]:
+    """The G1's links with collision capsules (their spheres can be lifted)."""
+    model = g1.g1_mjmodel()
+    names = []
+    for b in range(model.nbody):
+        try:
+            link_spheres(model.body(b).name)
+        except ValueError:
+            continue
+        names.append(model.body(b).name)
+    return tuple(names)
+
+
+@functools.cache
+def g1_terms() -> RobotTerms:
+    """The G1's own kinds: kinematics (with its contact frames) and every link's spheres."""
+    model = g1.g1_pinocchio_model()
+    kin = SymbolicKinematics(model)
+    frames = contact_frames()
+    spheres = {link: link_spheres_kind(kin, link) for link in collision_links()}
+    return RobotTerms(kinematics_kind(kin, frames), spheres, kin.mass, frames)
+
+
+def generic_kinds() -> list[TermKind]:
+    """Every kind that does not depend on the robot model."""
+    kinds = [frame_point_kind(), robot_step_kind(), object_step_kind(), same_object_wrench_kind()]
+    kinds += [wrench_kind(at, about) for at, about in (("point", "point"), ("object", "point"))]
+    kinds += [wrench_kind("point", "object")]
+    kinds += [foot_patch_kind(o) for o in ONSETS] + [hand_contact_kind(o) for o in ONSETS]
+    kinds += [foot_cone_kind(), object_face_cone_kind()]
+    for support in SUPPORT_KINDS:
+        kinds += [support_contact_kind(support, o) for o in ONSETS]
+        kinds.append(support_wrench_kind(support))
+    kinds += [stance_kind(False), stance_kind(True), walking_kind(), regularization_kind()]
+    kinds += [squared_kind(1), squared_kind(6), keyframe_base_kind(), keyframe_foot_kind()]
+    kinds += [object_pose_kind(), homotopy_weight_kind()]
+    for geometry in GEOMETRIES:
+        for treatment in TREATMENTS[1:]:
+            if geometry == "sphere_sphere" and treatment == "homotopy":
+                continue
+            kinds.append(collision_kind(geometry, treatment))
+    return kinds
+
+
+def all_kinds(robot: RobotTerms) -> list[TermKind]:
+    """The robot's kinds and the generic ones: the compiled set."""
+    return [robot.kinematics, *robot.link_spheres.values(), *generic_kinds()]

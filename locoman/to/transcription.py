@@ -1,0 +1,833 @@
+"""Paper A's TO (Sec. IV) written as calls of compiled term kinds: which term acts at which
+node, on which variables, with which numbers. Everything here is data; nothing compiles.
+
+Over each step k -> k + 1 (nodes 0 .. N - 1, modes from :mod:`locoman.to.modes`):
+
+- the dynamics (1) of the robot and of every object simulated at k + 1, each body's step
+  with gravity (:mod:`locoman.to.terms.dynamics`), to which every contact acting at node k
+  adds its wrench: a foot's and a hand's on the robot, and, by (6), the opposite on the
+  object the hand touches or the foot stands on; an object's support on it, and the
+  opposite on the object that carries it;
+- the contacts of node k + 1 (:mod:`locoman.to.terms.contacts`, :mod:`.supports`): each
+  foot's patch (2), each hand's interactive contact (4), (5), each simulated object's
+  support, at touchdown or held;
+- the friction cones (3) and support rows of node k's wrenches.
+
+At every node: the lifted kinematics and collision spheres, the costs of Table I by the
+node's mode, L_reg, the slacks, (9), (10) and the objects' goals, and the collision pairs
+(:func:`collision_pairs`), each kind under its treatment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterator
+
+import numpy as np
+
+from locoman.config.to import ContactCfg
+from locoman.errors import ConfigError
+from locoman.retarget.robot import ContactFrames
+from locoman.to.assembly import Block, RowSpace
+from locoman.to.collision import (
+    CollisionCfg,
+    Obstacle,
+    box_corners,
+    edge_point_counts,
+    edge_points,
+)
+from locoman.to.costs import CostWeights
+from locoman.to.layout import FEET, HANDS, KINEMATICS, NodeLayout, ObjectModel
+from locoman.to.modes import NodeMode
+from locoman.to.spheres import (
+    ELBOW_LINKS,
+    FOREARM_LINKS,
+    LEG_LINKS,
+    RobotSphere,
+    SphereSet,
+    body_point_spheres,
+    foot_spheres,
+    link_sphere_list,
+    palm_spheres,
+)
+from locoman.to.terms import Calls, TermKind
+from locoman.to.terms.collisions import collision_kind, homotopy_weight_kind
+from locoman.to.terms.contacts import (
+    foot_cone_kind,
+    foot_patch_kind,
+    hand_contact_kind,
+    object_face_cone_kind,
+)
+from locoman.to.terms.costs import (
+    REGULARIZATION_WEIGHTS,
+    STANCE_WEIGHTS,
+    WALKING_WEIGHTS,
+    keyframe_base_kind,
+    keyframe_foot_kind,
+    object_pose_kind,
+    regularization_kind,
+    squared_kind,
+    stance_kind,
+    walking_kind,
+    weight_values,
+)
+from locoman.to.terms.dynamics import (
+    object_step_kind,
+    robot_step_kind,
+    same_object_wrench_kind,
+    wrench_kind,
+)
+from locoman.to.terms.kinematics import frame_point_kind
+from locoman.to.terms.supports import (
+    object_numbers,
+    support_contact_kind,
+    support_wrench_kind,
+)
+
+IDENTITY = np.eye(3).ravel(order="F")
+
+
+@dataclasses.dataclass(frozen=True)
+class CollisionPair:
+    """One collision term at one node: what is kept out of what.
+
+    Attributes:
+        node: The node.
+        kind: Its :class:`CollisionCfg` kind (which decides its treatment).
+        geometry: A key of :data:`locoman.to.terms.collisions.GEOMETRIES`.
+        sphere: The robot's sphere (the ``sphere_*`` geometries).
+        other: ``sphere_sphere``'s second sphere.
+        obj: The moving object of the ``*object*`` geometries.
+        numbers: The geometry's numbers (box centre and half sizes, a point, a yaw) [m, rad].
+        touching: Kept out of the box only, with the least margin (a hand holding an open
+            object keeps its forearm out of it).
+        label: What the pair is, for reports (``left_elbow_link/1 | basket/floor``).
+    """
+
+    node: int
+    kind: str
+    geometry: str
+    sphere: RobotSphere | None = None
+    other: RobotSphere | None = None
+    obj: int | None = None
+    numbers: dict = dataclasses.field(default_factory=dict)
+    touching: bool = False
+    label: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotTerms:
+    """The robot-specific term kinds: its kinematics and its links' spheres."""
+
+    kinematics: TermKind
+    link_spheres: dict[str, TermKind]
+    mass: float  # [kg]
+    frames: ContactFrames
+
+
+@dataclasses.dataclass(frozen=True)
+class Numbers:
+    """The numbers of a problem that a sweep changes without changing which terms exist:
+    cost weights, contact numbers, collision numbers, the objects' masses, sizes and
+    frictions, the obstacles' boxes."""
+
+    weights: CostWeights
+    contact: ContactCfg
+    collision: CollisionCfg
+    objects: tuple[ObjectModel, ...]
+    obstacles: tuple[Obstacle, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class Transcription:
+    """The problem as data: its layout, lifted spheres, collision pairs, term calls and the
+    constraint rows they own."""
+
+    layout: NodeLayout
+    nodes: int
+    spheres: SphereSet
+    pairs: tuple[CollisionPair, ...]
+    blocks: tuple[Block, ...]
+    rows: RowSpace
+
+    @property
+    def n_x(self) -> int:
+        """The NLP's variables."""
+        return self.nodes * self.layout.width
+
+    @property
+    def n_y(self) -> int:
+        """Its virtual variables (the robot's sphere centres)."""
+        return self.nodes * 3 * len(self.spheres)
+
+    def rows_of(self, term: str) -> np.ndarray:
+        """(calls, ng) the rows the calls of ``term`` own (they may have others' shares)."""
+        return np.concatenate([b.rows for b in self.blocks if b.term.name == term])
+
+    def lift(self, x: np.ndarray, rows=None) -> np.ndarray:
+        """``x`` with its lifted variables (kinematics, sphere centres) at their values at
+        its q and v: a lifting term's rows are c - f(...), so -f with c at zero.
+        ``rows(block, x)``: the rows of a block's calls, (calls, ng); default: its own
+        uncompiled function."""
+        x = np.array(x, dtype=float)
+        for block in self.blocks:
+            if not block.term.lifts or block.defines:
+                continue
+            lifted = block.x[:, -block.term.ng :]
+            x[lifted] = 0.0
+            if rows is None:
+                g = block.term.function.map(block.calls)(x[block.x].T, block.p.T)[0]
+                x[lifted] = -np.asarray(g).T
+            else:
+                x[lifted] = -rows(block, x)
+        return x
+
+    def extended(self, x: np.ndarray) -> np.ndarray:
+        """z = (x, y): ``x`` and the virtual variables its defining blocks give."""
+        z = np.r_[np.asarray(x, dtype=float), np.zeros(self.n_y)]
+        for block in self.blocks:
+            if block.defines and block.calls:
+                lifted = block.x[:, -block.term.ng :]
+                g = block.term.function.map(block.calls)(z[block.x].T, block.p.T)[0]
+                z[lifted] = -np.asarray(g.full()).T
+        return z
+
+    def values(self, x: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        """Every constraint row at the NLP's point ``x``, and the cost by term, with the
+        terms' own (uncompiled) functions: for checks and reports, not for solving."""
+        g = np.zeros(self.rows.size)
+        costs: dict[str, float] = {}
+        x = self.extended(x)
+        for block in self.blocks:
+            if not block.calls or block.defines:
+                continue
+            out = block.term.function.map(block.calls)(x[block.x].T, block.p.T)
+            gb, lb, rb = (np.asarray(v.full()) for v in out)
+            np.add.at(g, block.rows.ravel(), gb.T.ravel())
+            cost = float(lb.sum()) + float(np.square(rb).sum())
+            costs[block.term.name] = costs.get(block.term.name, 0.0) + cost
+        return g, costs
+
+
+class _Index:
+    """Indices into the NLP's x (node-major blocks of ``layout.width``)."""
+
+    def __init__(self, layout: NodeLayout, spheres: SphereSet, nodes: int) -> None:
+        self.layout, self.spheres, self.width, self.nodes = layout, spheres, layout.width, nodes
+
+    def var(self, k: int, name: str) -> np.ndarray:
+        s = self.layout.variables[name]
+        return k * self.width + np.arange(s.start, s.stop)
+
+    def kin(self, k: int, name: str) -> np.ndarray:
+        start = self.layout.variables["kin"].start
+        s = KINEMATICS[name]
+        return k * self.width + start + np.arange(s.start, s.stop)
+
+    def obj(self, k: int, j: int, quantity: str) -> np.ndarray:
+        s = self.layout.object_variables(j, quantity)
+        return k * self.width + np.arange(s.start, s.stop)
+
+    def foot(self, k: int, i: int, quantity: str) -> np.ndarray:
+        return self.kin(k, f"{FEET[i]}_{quantity}")
+
+    def hand(self, k: int, i: int, quantity: str) -> np.ndarray:
+        return self.kin(k, f"{HANDS[i]}_{quantity}")
+
+    def wrench(self, k: int, name: str, i: int) -> np.ndarray:
+        return self.var(k, name)[6 * i : 6 * i + 6]
+
+    def sphere(self, k: int, sphere: RobotSphere) -> np.ndarray:
+        return self.spheres.centre(self.layout, self.nodes, k, sphere)
+
+
+def _prehensile(contact: ContactCfg, obj: ObjectModel) -> bool:
+    return bool(contact.prehensile or obj.prehensile)
+
+
+def _smallest_half_size(obj: ObjectModel) -> float:
+    """An object box's smallest half size [m]: its patch's half sizes and half its height
+    (its CoM sits at half height)."""
+    return float(min(np.min(obj.half_extents), obj.com[2]))
+
+
+def _object_box(obj: ObjectModel) -> tuple[np.ndarray, np.ndarray]:
+    """A solid object's collision box in its frame: centre [m] (its CoM) and half sizes [m]
+    (its patch's, and half its height: its frame sits at the bottom face)."""
+    return np.asarray(obj.com, dtype=float), np.r_[obj.half_extents, obj.com[2]]
+
+
+def _boxes(obj: ObjectModel, parts: tuple) -> list[tuple[np.ndarray, np.ndarray]]:
+    return [(np.asarray(c, dtype=float), np.asarray(h, dtype=float)) for c, h in parts]
+
+
+# --- collision pairs ------------------------------------------------------------------------
+
+
+def _sphere_box_pairs(
+    node: int, kind: str, spheres, boxes, j: int, name: str, touching: bool = False
+) -> Iterator[CollisionPair]:
+    for b, (centre, half) in enumerate(boxes):
+        for s in spheres:
+            yield CollisionPair(
+                node,
+                kind,
+                "sphere_object_box",
+                sphere=s,
+                obj=j,
+                numbers={"centre": centre, "half": half},
+                touching=touching,
+                label=f"{s.name} | {name}/{b}",
+            )
+
+
+def node_collision_pairs(
+    k: int,
+    mode: NodeMode,
+    objects: tuple[ObjectModel, ...],
+    obstacles: tuple[Obstacle, ...],
+    cfg: CollisionCfg,
+    contact: ContactCfg,
+    frames: ContactFrames,
+) -> Iterator[CollisionPair]:
+    """The collision pairs at node k, each of a kind that is not ``off``: the trunk's body
+    points, the legs' and the feet's spheres and the arms not touching it against each
+    object's boxes; each carried object's corners against the obstacles and the obstacles'
+    edges against it; the palms, forearms and feet against the obstacles."""
+    body = body_point_spheres()
+    legs = [s for link in LEG_LINKS for s in link_sphere_list(link)]
+    palms = [palm_spheres(frames, i) for i in range(2)]
+    forearms = [link_sphere_list(link) for link in FOREARM_LINKS]
+    elbows = [s for link in ELBOW_LINKS for s in link_sphere_list(link)]
+    feet = [foot_spheres(i) for i in range(2)]
+    on = {kind for kind in ("object_body", "hands_object", "legs_object", "feet_object")}
+    on = {kind for kind in on if getattr(cfg, kind) != "off"}
+    for j, obj in enumerate(objects):
+        boxes = [_object_box(obj)] if obj.solid else _boxes(obj, obj.parts)
+        under = boxes if obj.solid else _boxes(obj, obj.wheels or obj.parts)
+        name = obj.name
+        if "object_body" in on:
+            yield from _sphere_box_pairs(k, "object_body", body, boxes, j, name)
+        if "hands_object" in on:
+            # A palm that does not touch the object; a solid box's own corners catch a
+            # forearm, while a trolley's thin handle bar passes between the palms and the
+            # body points, so an open object checks the forearm too. The elbows always:
+            # taking a basket that overhangs a shelf, they went into its floor.
+            arms = []
+            for i in range(2):
+                if mode.hands[i] != j:
+                    arms += palms[i] if obj.solid else palms[i] + forearms[i]
+            yield from _sphere_box_pairs(k, "hands_object", arms + elbows, boxes, j, name)
+            # The forearms of the hands holding an open object (a basket's wall) are kept
+            # out of it, touching allowed; a gripped handle sits in the hand.
+            if not obj.solid and not _prehensile(contact, obj):
+                holding = [s for i in range(2) if mode.hands[i] == j for s in forearms[i]]
+                yield from _sphere_box_pairs(
+                    k, "hands_object", holding, boxes, j, name, touching=True
+                )
+        if "legs_object" in on:
+            yield from _sphere_box_pairs(k, "legs_object", legs, boxes, j, name)
+        if "feet_object" in on and j in mode.underfoot:
+            # Off an object on the floor (S1's box, S2's wheels), but for a foot on its top.
+            feet_j = [s for i in range(2) if mode.feet_on[i] != j for s in feet[i]]
+            yield from _sphere_box_pairs(k, "feet_object", feet_j, under, j, name)
+    if cfg.object_environment != "off":
+        for j, obj in enumerate(objects):
+            if mode.carried(j):
+                yield from _object_environment_pairs(k, j, obj, obstacles)
+    arms = [s for i in range(2) for s in palms[i] + forearms[i]]
+    both_feet = feet[0] + feet[1]
+    for kind, spheres in (("hands_environment", arms), ("feet_environment", both_feet)):
+        if getattr(cfg, kind) == "off":
+            continue
+        for obstacle in obstacles:
+            for s in spheres:
+                yield CollisionPair(
+                    k,
+                    kind,
+                    "sphere_fixed_box",
+                    sphere=s,
+                    numbers=_obstacle_numbers(obstacle),
+                    label=f"{s.name} | {obstacle.name}",
+                )
+
+
+def _obstacle_numbers(obstacle: Obstacle) -> dict:
+    return {"centre": obstacle.centre, "yaw": obstacle.yaw, "half": obstacle.half_extents}
+
+
+def _object_environment_pairs(
+    k: int, j: int, obj: ObjectModel, obstacles: tuple[Obstacle, ...]
+) -> Iterator[CollisionPair]:
+    """Each corner of carried object j against each obstacle, and the obstacles' vertical
+    and top edges (points, spaced by the object's smallest half size) against the object."""
+    centre, half = _object_box(obj)
+    corners = box_corners(half)
+    for obstacle in obstacles:
+        for c in corners:
+            yield CollisionPair(
+                k,
+                "object_environment",
+                "object_point_fixed_box",
+                obj=j,
+                numbers={"point": c, **_obstacle_numbers(obstacle)},
+                label=f"{obj.name}/corner | {obstacle.name}",
+            )
+        counts = edge_point_counts(obstacle.half_extents, _smallest_half_size(obj))
+        for point in edge_points(obstacle, counts):
+            yield CollisionPair(
+                k,
+                "object_environment",
+                "fixed_point_object_box",
+                obj=j,
+                numbers={"point": point, "centre": centre, "half": half},
+                label=f"{obstacle.name}/edge | {obj.name}",
+            )
+
+
+def self_collision_pairs(k: int, cfg: CollisionCfg) -> Iterator[CollisionPair]:
+    """The spheres of each link pair of ``self_pairs`` and ``knee_pairs`` whose kind is on."""
+    for kind, pairs in (("self_collision", cfg.self_pairs), ("knee_collision", cfg.knee_pairs)):
+        if getattr(cfg, kind) == "off":
+            continue
+        for a, b in pairs:
+            for sa in link_sphere_list(a):
+                for sb in link_sphere_list(b):
+                    yield CollisionPair(
+                        k,
+                        kind,
+                        "sphere_sphere",
+                        sphere=sa,
+                        other=sb,
+                        label=f"{sa.name} | {sb.name}",
+                    )
+
+
+def collision_pairs(
+    modes: list[NodeMode], numbers: Numbers, frames: ContactFrames
+) -> list[CollisionPair]:
+    """Every collision pair of the problem: at every node those of its mode, and the
+    robot's own pairs at every node but the first (fixed)."""
+    out = []
+    for k, mode in enumerate(modes):
+        out += node_collision_pairs(
+            k, mode, numbers.objects, numbers.obstacles, numbers.collision, numbers.contact, frames
+        )
+        if k > 0:
+            out += self_collision_pairs(k, numbers.collision)
+    return out
+
+
+def used_spheres(pairs: list[CollisionPair]) -> SphereSet:
+    return SphereSet(s for pair in pairs for s in (pair.sphere, pair.other) if s is not None)
+
+
+# --- the blocks -------------------------------------------------------------------------------
+
+
+class _Builder:
+    """Collects the calls of every kind, then hands out their blocks."""
+
+    def __init__(self) -> None:
+        self.rows = RowSpace()
+        self.blocks: list[Block] = []
+        self._calls: dict[str, Calls] = {}
+        self._targets: dict[str, list[np.ndarray]] = {}
+
+    def calls(self, kind: TermKind) -> Calls:
+        return self._calls.setdefault(kind.name, Calls(kind))
+
+    def own(self, kind: TermKind) -> Calls:
+        """Calls whose rows are their own (flushed by :meth:`close`)."""
+        return self.calls(kind)
+
+    def onto(self, kind: TermKind, x: dict, p: dict, target: np.ndarray) -> None:
+        """A call whose rows add to existing ``target`` rows."""
+        key = f"onto:{kind.name}"
+        calls = self._calls.setdefault(key, Calls(kind))
+        calls.add(x, p)
+        self._targets.setdefault(key, []).append(np.asarray(target))
+
+    def define(self, kind: TermKind) -> None:
+        """The calls of ``kind`` so far define virtual variables (:attr:`Block.defines`)."""
+        calls = self._calls.pop(kind.name, None)
+        if calls is not None and len(calls):
+            x, p = calls.arrays()
+            self.blocks.append(Block(kind.term, x, p, np.zeros((len(x), 0), int), defines=True))
+
+    def flush_owned(self, kind: TermKind) -> np.ndarray:
+        """The rows of the calls of ``kind`` so far, as one block (n, ng); the kind's calls
+        start afresh."""
+        calls = self._calls.pop(kind.name)
+        block = calls.own(self.rows)
+        self.blocks.append(block)
+        return block.rows
+
+    def close(self) -> list[Block]:
+        for key, calls in self._calls.items():
+            if not len(calls):
+                continue
+            if key.startswith("onto:"):
+                self.blocks.append(calls.onto(self._targets[key]))
+            elif calls.kind.term.ng:
+                self.blocks.append(calls.own(self.rows))
+            else:
+                self.blocks.append(calls.costs())
+        self._calls.clear()
+        return self.blocks
+
+
+def transcribe(
+    modes: list[NodeMode],
+    P: np.ndarray,
+    numbers: Numbers,
+    robot: RobotTerms,
+    pairs: list[CollisionPair] | None = None,
+) -> Transcription:
+    """The problem as term calls.
+
+    Args:
+        modes: The contact mode of every node.
+        P: (n_params, N) the per-node numbers (:func:`locoman.to.node_parameters.node_parameters`).
+        numbers: Weights, contact and collision numbers, objects, obstacles.
+        robot: The robot's own term kinds.
+        pairs: The collision pairs; None: :func:`collision_pairs` of the configuration.
+    """
+    if pairs is None:
+        pairs = collision_pairs(modes, numbers, robot.frames)
+    spheres = used_spheres(pairs)
+    layout = NodeLayout.of(len(numbers.objects))
+    n = len(modes)
+    at = _Index(layout, spheres, n)
+    par = NodeLayout.of(len(numbers.objects)).parameters
+    opar = NodeLayout.of(len(numbers.objects)).object_parameters
+    b = _Builder()
+    _kinematics(b, at, robot, n)
+    _dynamics(b, at, modes, numbers, robot, P, par)
+    _contacts(b, at, modes, numbers, robot, P, par, opar)
+    _wrench_rows(b, at, modes, numbers, robot, P, par)
+    _costs(b, at, modes, numbers, robot, P, par, opar)
+    _collisions(b, at, pairs, numbers.collision, numbers.weights)
+    blocks = b.close()
+    return Transcription(layout, n, spheres, tuple(pairs), tuple(blocks), b.rows)
+
+
+def _kinematics(b: _Builder, at: _Index, robot: RobotTerms, n: int) -> None:
+    """The lifted kinematics at every node, and the virtual sphere centres."""
+    kinematics = b.own(robot.kinematics)
+    for k in range(n):
+        kinematics.add({"q": at.var(k, "q"), "v": at.var(k, "v"), "kin": at.var(k, "kin")})
+    for link in at.spheres.links:
+        calls = b.calls(robot.link_spheres[link])
+        slots = at.spheres.slots(link)
+        for k in range(n):
+            centres = at.spheres.virtual(at.layout, n, k) + slots
+            calls.add({"q": at.var(k, "q"), "c": centres})
+        b.define(robot.link_spheres[link])
+    frame_points = b.calls(frame_point_kind())
+    for s in at.spheres.lifted:
+        if s.frame is None:
+            continue
+        for k in range(n):
+            x = {
+                "r": at.kin(k, f"{s.frame}_r"),
+                "R": at.kin(k, f"{s.frame}_R"),
+                "c": at.sphere(k, s),
+            }
+            frame_points.add(x, {"offset": s.offset})
+    b.define(frame_point_kind())
+
+
+def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par) -> None:
+    """(1) of the robot and of each object simulated at k + 1, with the wrenches of node
+    k's contacts, over every step."""
+    objects = numbers.objects
+    robot_step, object_step = robot_step_kind(), object_step_kind()
+    steps = b.own(robot_step)
+    object_steps = b.own(object_step)
+    which: list[tuple[int, int]] = []
+    for k in range(len(modes) - 1):
+        steps.add(
+            {
+                "h": at.kin(k, "h"),
+                "h1": at.kin(k + 1, "h"),
+                "q": at.var(k, "q"),
+                "q1": at.var(k + 1, "q"),
+                "v1": at.var(k + 1, "v"),
+                "dt": at.var(k, "dt"),
+            },
+            {"mass": robot.mass},
+        )
+        for j, obj in enumerate(objects):
+            if not modes[k + 1].objects[j].active:
+                continue
+            object_steps.add(
+                {
+                    "q": at.obj(k, j, "q"),
+                    "v": at.obj(k, j, "v"),
+                    "q1": at.obj(k + 1, j, "q"),
+                    "v1": at.obj(k + 1, j, "v"),
+                    "dt": at.var(k, "dt"),
+                },
+                {"mass": obj.mass, "inertia": obj.inertia, "com": obj.com},
+            )
+            which.append((k, j))
+    robot_rows = b.flush_owned(robot_step)[:, 0:6]
+    object_rows = {
+        kj: rows[0:6] for kj, rows in zip(which, b.flush_owned(object_step), strict=True)
+    }
+    on_lifted = wrench_kind("point", "point")
+    at_object = wrench_kind("object", "point")
+    on_object = wrench_kind("point", "object")
+    same_object = same_object_wrench_kind()
+    for k, mode in enumerate(modes[:-1]):
+        dt = at.var(k, "dt")
+        for i in range(2):
+            foot = at.wrench(k, "foot_wrench", i)
+            if mode.feet[i]:
+                r = at.foot(k, i, "r")
+                x = {"wrench": foot, "r": r, "c": at.kin(k, "com"), "dt": dt}
+                b.onto(on_lifted, x, {"sign": 1.0}, robot_rows[k])
+                j = mode.feet_on[i]
+                if j is not None and (k, j) in object_rows:
+                    x = {"wrench": foot, "r": r, "c_q": at.obj(k, j, "q"), "dt": dt}
+                    p = {"sign": -1.0, "c_local": objects[j].com}
+                    b.onto(on_object, x, p, object_rows[(k, j)])
+            j = mode.hands[i]
+            if j is None:
+                continue
+            hand = at.wrench(k, "hand_wrench", i)
+            point = P[par["hand_points"], k][3 * i : 3 * i + 3]
+            x = {"wrench": hand, "r_q": at.obj(k, j, "q"), "c": at.kin(k, "com"), "dt": dt}
+            b.onto(at_object, x, {"sign": 1.0, "r_local": point}, robot_rows[k])
+            if (k, j) in object_rows:
+                x = {"wrench": hand, "q": at.obj(k, j, "q"), "dt": dt}
+                p = {"sign": -1.0, "r_local": point, "c_local": objects[j].com}
+                b.onto(same_object, x, p, object_rows[(k, j)])
+        for j, obj in enumerate(objects):
+            if (k, j) not in object_rows:
+                continue
+            # An object not yet simulated rests on its support's fixed wrench: the step
+            # into its first simulated node needs it.
+            if mode.objects[j].support is not None:
+                x = {"wrench": at.obj(k, j, "support_wrench"), "q": at.obj(k, j, "q"), "dt": dt}
+                p = {"sign": 1.0, "r_local": np.zeros(3), "c_local": obj.com}
+                b.onto(same_object, x, p, object_rows[(k, j)])
+            for rider in mode.riders(j):
+                x = {
+                    "wrench": at.obj(k, rider, "support_wrench"),
+                    "r": at.obj(k, rider, "q")[0:3],
+                    "c_q": at.obj(k, j, "q"),
+                    "dt": dt,
+                }
+                b.onto(on_object, x, {"sign": -1.0, "c_local": obj.com}, object_rows[(k, j)])
+
+
+def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, opar) -> None:
+    """The contacts of node k + 1: feet, hands, supports."""
+    k_z = numbers.contact.stiffness
+    palm_radius = float(robot.frames.palm_radius)
+    for k in range(len(modes) - 1):
+        m, m1, k1 = modes[k], modes[k + 1], k + 1
+        for i in range(2):
+            if not m1.feet[i]:
+                continue
+            onset = "held" if m.feet[i] else "touchdown"
+            x = {
+                "r": at.foot(k1, i, "r"),
+                "r_dot": at.foot(k1, i, "r_dot"),
+                "R": at.foot(k1, i, "R"),
+                "slack": at.var(k1, "foot_slack")[i],
+            }
+            x |= (
+                {"w": at.foot(k1, i, "w")}
+                if onset == "touchdown"
+                else {"r_before": at.foot(k, i, "r")}
+            )
+            p = {"surface_z": P[par["foot_surface_z"], k1][i], "k_z": k_z}
+            b.own(foot_patch_kind(onset)).add(x, p)
+        for i in range(2):
+            j = m1.hands[i]
+            if j is None:
+                continue
+            onset = "held" if m.hands[i] == j else "touchdown"
+            x = {
+                "r": at.hand(k1, i, "r"),
+                "R": at.hand(k1, i, "R"),
+                "w": at.hand(k1, i, "w"),
+                "slack": at.var(k1, "hand_slack")[3 * i : 3 * i + 3],
+                "q_o": at.obj(k1, j, "q"),
+                "v_o": at.obj(k1, j, "v"),
+            }
+            p = {
+                "point": P[par["hand_points"], k1][3 * i : 3 * i + 3],
+                "face": P[par["hand_frames"], k1][9 * i : 9 * i + 9],
+                "palm_radius": palm_radius,
+            }
+            b.own(hand_contact_kind(onset)).add(x, p)
+        for j, obj in enumerate(numbers.objects):
+            # Where an object starts to move its state at k and the wrenches on it are
+            # fixed, so (1) alone fixes its state at k + 1: a support contact there too
+            # would repeat it and make the constraint Jacobian rank-deficient.
+            support = m1.objects[j].support
+            if support is None or not (m.objects[j].active and m1.objects[j].active):
+                continue
+            held = m.objects[j].support == support
+            x = {
+                "q": at.obj(k1, j, "q"),
+                "v": at.obj(k1, j, "v"),
+                "slack": at.obj(k1, j, "support_slack"),
+            }
+            if held:
+                x |= {"q_before": at.obj(k, j, "q"), "v_before": at.obj(k, j, "v")}
+            base = getattr(support, "base", None)
+            if base is not None:
+                x |= {"base_q": at.obj(k1, base, "q"), "base_v": at.obj(k1, base, "v")}
+                if held:
+                    x |= {
+                        "base_q_before": at.obj(k, base, "q"),
+                        "base_v_before": at.obj(k, base, "v"),
+                    }
+            p = {"height": P[opar(j, "support_z"), k1][0], "k_z": k_z, **object_numbers(obj)}
+            kind = support_contact_kind(type(support), "held" if held else "touchdown")
+            b.own(kind).add(x, p)
+
+
+def _wrench_rows(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par) -> None:
+    """Node k's rows on its wrenches: the friction cones and CoP (3), the supports' rows."""
+    contact = numbers.contact
+    sole_half = np.asarray(robot.frames.sole_half_extents, dtype=float)
+    for k, mode in enumerate(modes[:-1]):
+        for i in range(2):
+            if mode.feet[i]:
+                x = {"wrench": at.wrench(k, "foot_wrench", i), "R": at.foot(k, i, "R")}
+                p = {"mu": contact.floor_friction, "half": sole_half}
+                b.own(foot_cone_kind()).add(x, p)
+            j = mode.hands[i]
+            if j is not None and not _prehensile(contact, numbers.objects[j]):
+                x = {"wrench": at.wrench(k, "hand_wrench", i), "rpy": at.obj(k, j, "q")[3:6]}
+                p = {
+                    "mu": numbers.objects[j].friction,
+                    "half": contact.palm_half_extents_m,
+                    "face": P[par["hand_frames"], k][9 * i : 9 * i + 9],
+                }
+                b.own(object_face_cone_kind()).add(x, p)
+        for j, obj in enumerate(numbers.objects):
+            if mode.supported(j):
+                support = mode.objects[j].support
+                x = {"wrench": at.obj(k, j, "support_wrench"), "q": at.obj(k, j, "q")}
+                b.own(support_wrench_kind(type(support))).add(x, object_numbers(obj))
+
+
+def _carried(mode: NodeMode, k: int) -> list[int]:
+    carried = [j for j in range(len(mode.objects)) if mode.carried(j)]
+    if len(carried) > 1:
+        raise ConfigError(
+            f"node {k} carries objects {carried}: the stance cost's CoM c_all takes one "
+            "carried object at most"
+        )
+    return carried
+
+
+def _costs(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, opar) -> None:
+    """(8) per node by its mode, L_reg, L_slack, (9), (10) and the objects' poses."""
+    w = numbers.weights
+    stance_w = weight_values(w, STANCE_WEIGHTS)
+    walking_w = weight_values(w, WALKING_WEIGHTS)
+    reg_w = weight_values(w, REGULARIZATION_WEIGHTS)
+    for k, mode in enumerate(modes):
+        q, yaw_ref = at.var(k, "q"), P[par["yaw_ref"], k][0]
+        surface = P[par["foot_surface_z"], k]
+        if mode.stance:
+            x = {
+                "q": q,
+                "com": at.kin(k, "com"),
+                "r_l": at.foot(k, 0, "r"),
+                "r_r": at.foot(k, 1, "r"),
+                "R_l": at.foot(k, 0, "R"),
+                "R_r": at.foot(k, 1, "R"),
+            }
+            p = stance_w | {"yaw_ref": yaw_ref}
+            carried = _carried(mode, k)
+            if carried:
+                obj = numbers.objects[carried[0]]
+                x |= {"q_o": at.obj(k, carried[0], "q")}
+                p |= {"robot_mass": robot.mass, "object_mass": obj.mass, "object_com": obj.com}
+            b.own(stance_kind(bool(carried))).add(x, p)
+            x = {"r_l": at.foot(k, 0, "r"), "r_r": at.foot(k, 1, "r")}
+            p = {
+                "weight": w.keyframe_foot * P[par["kf_foot_on"], k][0],
+                "target": P[par["kf_foot"], k],
+            }
+            b.own(keyframe_foot_kind()).add(x, p)
+        else:
+            swing = next(i for i in range(2) if not mode.feet[i])
+            x = {"q": q, "r_swing": at.foot(k, swing, "r")}
+            p = walking_w | {"yaw_ref": yaw_ref, "surface_z": surface[swing]}
+            b.own(walking_kind()).add(x, p)
+        # The base height is over the surface the feet stand on (the floor, or a box's top).
+        down = [i for i in range(2) if mode.feet[i]]
+        ground = sum(surface[i] for i in down) / len(down)
+        x = {
+            "q": q,
+            "v": at.var(k, "v"),
+            "foot_wrench": at.var(k, "foot_wrench"),
+            "hand_wrench": at.var(k, "hand_wrench"),
+            "dt": at.var(k, "dt"),
+        }
+        b.own(regularization_kind()).add(x, reg_w | {"ground": ground})
+        slacks = [at.var(k, "foot_slack"), at.var(k, "hand_slack")]
+        slacks += [at.obj(k, j, "support_slack") for j in range(len(numbers.objects))]
+        for s in np.concatenate(slacks):
+            b.own(squared_kind(1)).add({"x": s}, {"weight": w.slack})
+        on = P[par["kf_base_on"], k][0]
+        height, orientation = w.keyframe_base
+        p = {
+            "w_height": height * on,
+            "w_orientation": orientation * on,
+            "reference": P[par["kf_base"], k],
+        }
+        b.own(keyframe_base_kind()).add({"base": q[2:6]}, p)
+        for j in range(len(numbers.objects)):
+            if not mode.objects[j].active:
+                continue
+            b.own(squared_kind(6)).add({"x": at.obj(k, j, "support_wrench")}, {"weight": w.force})
+            p = {
+                "w_goal": w.object_goal * P[opar(j, "goal_on"), k][0],
+                "goal": P[opar(j, "goal"), k],
+                "w_upright": w.object_upright,
+            }
+            b.own(object_pose_kind()).add({"q": at.obj(k, j, "q")}, p)
+
+
+def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None:
+    """Every pair under its kind's treatment; (13b) at each node with a homotopy pair."""
+    touching_margin = math.log(3.0) * cfg.smoothing_m
+    homotopy_nodes = set()
+    for pair in pairs:
+        treatment = getattr(cfg, pair.kind)
+        kind = collision_kind(pair.geometry, treatment)
+        k = pair.node
+        if pair.geometry == "sphere_sphere":
+            x = {"a": at.sphere(k, pair.sphere), "b": at.sphere(k, pair.other)}
+            p = {"radius": pair.sphere.radius + pair.other.radius + cfg.margin_m}
+        else:
+            x = {"c": at.sphere(k, pair.sphere)} if pair.sphere is not None else {}
+            if pair.obj is not None:
+                x |= {"q_o": at.obj(k, pair.obj, "q")}
+            p = dict(pair.numbers)
+            if pair.sphere is not None:
+                p["radius"] = pair.sphere.radius
+            margin = touching_margin if pair.touching else cfg.margin_m
+            p |= {"margin": margin, "smoothing": cfg.smoothing_m, "length": cfg.length_m}
+        if treatment == "penalty":
+            p |= {"weight": w.collision, "softness": cfg.softness}
+        elif treatment == "homotopy":
+            x |= {"alpha": at.var(k, "alpha")}
+            p |= {"stand_in_margin": cfg.margin_m}
+            homotopy_nodes.add(k)
+        calls = b.own(kind)
+        calls.add(x, p)
+    for k in sorted(homotopy_nodes):
+        b.own(homotopy_weight_kind()).add({"alpha": at.var(k, "alpha")}, {"weight": w.homotopy})
