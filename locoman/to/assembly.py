@@ -281,13 +281,6 @@ class NLPResult:
         return WarmStart(self.x, self.lam_x, self.lam_g)
 
 
-def evaluate(block: Block, derivatives: dict[str, Derivatives], x: np.ndarray) -> np.ndarray:
-    """(n, ng) the rows of each call of ``block`` at the NLP's point ``x``."""
-    d = derivatives[block.term.name]
-    g, _ = d.val.map(block.calls)(x[block.x].T, block.p.T)
-    return np.asarray(g).T
-
-
 def structure_key(n_x: int, blocks: Sequence[Block]) -> str:
     """What an assembled NLP depends on: the variables' count, and per block its term, which
     variables each call takes and which rows it adds to (not the numbers ``p``)."""

@@ -60,7 +60,7 @@ class NodeLayout:
     """One node's decision variables and parameters for a scene with ``n_objects`` rigid
     objects (paper A: every object obeys the same dynamics (1) as the robot's centroid).
 
-    Variables: robot q, v; the lifted kinematics; per foot and hand a force [N] and moment
+    Variables: robot q, v; per foot and hand a force [N] and moment
     [N m] at the contact point (world axes; a hand's is the touched object's push on the
     robot); per object its q = (p, rpy), v = dq/dt and the wrench of its support on it (at
     its bottom centre); the slacks of (2a) and (4), per object the slack of its support's
@@ -92,7 +92,6 @@ class NodeLayout:
             {
                 "q": NQ,
                 "v": NQ,
-                "kin": N_KIN,
                 "foot_wrench": 12,  # (f_l, tau_l, f_r, tau_r)
                 "hand_wrench": 12,
                 **{

@@ -18,7 +18,6 @@ from locoman.to.assembly import (
     BlockNLP,
     NLPResult,
     WarmStart,
-    evaluate,
     load_derivatives,
     parameter_vector,
     structure_key,
@@ -221,7 +220,6 @@ class TrajectoryOptimizer:
             layout, inputs, schedule, modes, self.cfg.solver, self.robot.mass, homotopy
         )
         X0 = np.clip(X0, lo, hi)
-        X0 = self._lifted(X0, tr)
         p = parameter_vector(tr.blocks)
         args = (X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), p)
         warm = warm_start.warm_start if warm_start is not None else None
@@ -243,11 +241,6 @@ class TrajectoryOptimizer:
         exact = self._nlp(tr, "exact")
         polished = exact.solve(*args, result.warm_start, limits)
         return self._trajectory(polished, tr, nlp, transcribed_s, before=result)
-
-    def _lifted(self, X0: np.ndarray, tr: Transcription) -> np.ndarray:
-        """The guess with its lifted variables at their values at its q and v."""
-        x = tr.lift(X0.ravel(order="F"), lambda block, x: evaluate(block, self.derivatives, x))
-        return x.reshape(X0.shape, order="F")
 
     def _trajectory(
         self,

@@ -38,7 +38,7 @@ from locoman.to.collision import (
     edge_points,
 )
 from locoman.to.costs import CostWeights
-from locoman.to.layout import FEET, HANDS, KINEMATICS, NodeLayout, ObjectModel
+from locoman.to.layout import FEET, HANDS, KINEMATICS, N_KIN, NodeLayout, ObjectModel
 from locoman.to.modes import NodeMode
 from locoman.to.spheres import (
     ELBOW_LINKS,
@@ -78,7 +78,6 @@ from locoman.to.terms.dynamics import (
     same_object_wrench_kind,
     wrench_kind,
 )
-from locoman.to.terms.kinematics import frame_point_kind
 from locoman.to.terms.supports import (
     object_numbers,
     support_contact_kind,
@@ -118,10 +117,12 @@ class CollisionPair:
 
 @dataclasses.dataclass(frozen=True)
 class RobotTerms:
-    """The robot-specific term kinds: its kinematics and its links' spheres."""
+    """The robot-specific term kinds: its kinematics, its links' capsule spheres and points
+    fixed to its links."""
 
     kinematics: TermKind
     link_spheres: dict[str, TermKind]
+    link_points: dict[str, TermKind]
     mass: float  # [kg]
     frames: ContactFrames
 
@@ -158,30 +159,12 @@ class Transcription:
 
     @property
     def n_y(self) -> int:
-        """Its virtual variables (the robot's sphere centres)."""
-        return self.nodes * 3 * len(self.spheres)
+        """Its virtual variables: per node the robot's kinematics and sphere centres."""
+        return self.nodes * (N_KIN + 3 * len(self.spheres))
 
     def rows_of(self, term: str) -> np.ndarray:
         """(calls, ng) the rows the calls of ``term`` own (they may have others' shares)."""
         return np.concatenate([b.rows for b in self.blocks if b.term.name == term])
-
-    def lift(self, x: np.ndarray, rows=None) -> np.ndarray:
-        """``x`` with its lifted variables (kinematics, sphere centres) at their values at
-        its q and v: a lifting term's rows are c - f(...), so -f with c at zero.
-        ``rows(block, x)``: the rows of a block's calls, (calls, ng); default: its own
-        uncompiled function."""
-        x = np.array(x, dtype=float)
-        for block in self.blocks:
-            if not block.term.lifts or block.defines:
-                continue
-            lifted = block.x[:, -block.term.ng :]
-            x[lifted] = 0.0
-            if rows is None:
-                g = block.term.function.map(block.calls)(x[block.x].T, block.p.T)[0]
-                x[lifted] = -np.asarray(g).T
-            else:
-                x[lifted] = -rows(block, x)
-        return x
 
     def extended(self, x: np.ndarray) -> np.ndarray:
         """z = (x, y): ``x`` and the virtual variables its defining blocks give."""
@@ -211,19 +194,28 @@ class Transcription:
 
 
 class _Index:
-    """Indices into the NLP's x (node-major blocks of ``layout.width``)."""
+    """Indices into the NLP's x (node-major blocks of ``layout.width``), then into its
+    virtual variables (node-major blocks: the kinematics, the sphere centres)."""
 
     def __init__(self, layout: NodeLayout, spheres: SphereSet, nodes: int) -> None:
         self.layout, self.spheres, self.width, self.nodes = layout, spheres, layout.width, nodes
+        self.n_x = nodes * layout.width
+        self.virtual_width = N_KIN + 3 * len(spheres)
 
     def var(self, k: int, name: str) -> np.ndarray:
         s = self.layout.variables[name]
         return k * self.width + np.arange(s.start, s.stop)
 
+    def virtual(self, k: int) -> int:
+        """Node k's first virtual variable."""
+        return self.n_x + k * self.virtual_width
+
+    def kinematics(self, k: int) -> np.ndarray:
+        return self.virtual(k) + np.arange(N_KIN)
+
     def kin(self, k: int, name: str) -> np.ndarray:
-        start = self.layout.variables["kin"].start
         s = KINEMATICS[name]
-        return k * self.width + start + np.arange(s.start, s.stop)
+        return self.virtual(k) + np.arange(s.start, s.stop)
 
     def obj(self, k: int, j: int, quantity: str) -> np.ndarray:
         s = self.layout.object_variables(j, quantity)
@@ -239,7 +231,10 @@ class _Index:
         return self.var(k, name)[6 * i : 6 * i + 6]
 
     def sphere(self, k: int, sphere: RobotSphere) -> np.ndarray:
-        return self.spheres.centre(self.layout, self.nodes, k, sphere)
+        return self.virtual(k) + N_KIN + self.spheres.slots(sphere)
+
+    def link_spheres(self, k: int, link: str) -> np.ndarray:
+        return self.virtual(k) + N_KIN + self.spheres.link_slots(link)
 
 
 def _prehensile(contact: ContactCfg, obj: ObjectModel) -> bool:
@@ -300,7 +295,7 @@ def node_collision_pairs(
     palms = [palm_spheres(frames, i) for i in range(2)]
     forearms = [link_sphere_list(link) for link in FOREARM_LINKS]
     elbows = [s for link in ELBOW_LINKS for s in link_sphere_list(link)]
-    feet = [foot_spheres(i) for i in range(2)]
+    feet = [foot_spheres(frames, i) for i in range(2)]
     on = {kind for kind in ("object_body", "hands_object", "legs_object", "feet_object")}
     on = {kind for kind in on if getattr(cfg, kind) != "off"}
     for j, obj in enumerate(objects):
@@ -514,29 +509,22 @@ def transcribe(
 
 
 def _kinematics(b: _Builder, at: _Index, robot: RobotTerms, n: int) -> None:
-    """The lifted kinematics at every node, and the virtual sphere centres."""
-    kinematics = b.own(robot.kinematics)
+    """The kinematics and the sphere centres at every node: virtual variables."""
+    calls = b.calls(robot.kinematics)
     for k in range(n):
-        kinematics.add({"q": at.var(k, "q"), "v": at.var(k, "v"), "kin": at.var(k, "kin")})
+        calls.add({"q": at.var(k, "q"), "v": at.var(k, "v"), "kin": at.kinematics(k)})
+    b.define(robot.kinematics)
     for link in at.spheres.links:
         calls = b.calls(robot.link_spheres[link])
-        slots = at.spheres.slots(link)
         for k in range(n):
-            centres = at.spheres.virtual(at.layout, n, k) + slots
-            calls.add({"q": at.var(k, "q"), "c": centres})
+            calls.add({"q": at.var(k, "q"), "c": at.link_spheres(k, link)})
         b.define(robot.link_spheres[link])
-    frame_points = b.calls(frame_point_kind())
-    for s in at.spheres.lifted:
-        if s.frame is None:
-            continue
+    for point in at.spheres.points:
+        calls = b.calls(robot.link_points[point.link])
         for k in range(n):
-            x = {
-                "r": at.kin(k, f"{s.frame}_r"),
-                "R": at.kin(k, f"{s.frame}_R"),
-                "c": at.sphere(k, s),
-            }
-            frame_points.add(x, {"offset": s.offset})
-    b.define(frame_point_kind())
+            calls.add({"q": at.var(k, "q"), "c": at.sphere(k, point)}, {"offset": point.offset})
+    for kind in {id(k): k for k in robot.link_points.values()}.values():
+        b.define(kind)
 
 
 def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par) -> None:

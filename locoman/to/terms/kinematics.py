@@ -1,19 +1,21 @@
-"""The robot's kinematics, lifted into variables: the node constraints that tie them to q, v.
+"""The robot's kinematics, lifted: the quantities every other term reads, as functions of q, v.
 
 The expensive part of the TO, the G1's forward kinematics and its derivatives, appears once
-per node, in these terms only; every other term reads the lifted quantities:
+per node, in these terms only:
 
 - :func:`kinematics_kind`: centroidal momentum, CoM, the soles' and palms' frames and the
   trunk's body points (:data:`locoman.to.layout.KINEMATICS`);
 - :func:`link_spheres_kind`: the centres of one link's collision spheres (its capsules, as
   placo and MuJoCo see them), one kind per link;
-- :func:`frame_point_kind`: a point fixed to a lifted frame (the palms' and the feet's
-  collision spheres).
+- :func:`link_point_kind`: a point fixed to a link (the palms', the feet's and the trunk's
+  collision spheres), one kind per link.
+
+Each lifts its quantities (:attr:`locoman.to.assembly.Term.lifts`): as virtual variables of
+the NLP (:class:`locoman.to.assembly.BlockNLP`), functions of q and v whose derivatives reach
+them by the chain rule.
 """
 
 from __future__ import annotations
-
-import functools
 
 import casadi as ca
 
@@ -82,12 +84,13 @@ def link_spheres_kind(kin: SymbolicKinematics, link: str) -> TermKind:
     return term_kind(f"spheres_{link}", {"q": NQ, "c": 3 * len(spheres)}, {}, body, lifts=True)
 
 
-@functools.cache
-def frame_point_kind() -> TermKind:
-    """c - (r + R o) = 0: a point at ``o`` [m] in a lifted frame (r, R column-major)."""
+def link_point_kind(kin: SymbolicKinematics, link: str) -> TermKind:
+    """c - (p(q) + R(q) o) = 0: a point at ``offset`` o [m] in ``link``'s frame, defined."""
+    R, p = kin.frame_pose(link)
+    pose = ca.Function(f"{link}_pose", [kin.q], [p, ca.vec(R)])
 
-    def body(x, p) -> Rows:
-        R = ca.reshape(x["R"], 3, 3)
-        return Rows(equalities=[x["c"] - (x["r"] + R @ p["offset"])])
+    def body(x, par) -> Rows:
+        p_link, R_link = pose(x["q"])
+        return Rows(equalities=[x["c"] - (p_link + ca.reshape(R_link, 3, 3) @ par["offset"])])
 
-    return term_kind("frame_point", {"r": 3, "R": 9, "c": 3}, {"offset": 3}, body, lifts=True)
+    return term_kind(f"point_{link}", {"q": NQ, "c": 3}, {"offset": 3}, body, lifts=True)

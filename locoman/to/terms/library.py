@@ -14,6 +14,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.to.collision import TREATMENTS, link_spheres
 from locoman.to.kinematics import SymbolicKinematics
+from locoman.to.layout import BODY_POINTS
 from locoman.to.supports import SUPPORT_KINDS
 from locoman.to.terms import TermKind
 from locoman.to.terms.collisions import GEOMETRIES, collision_kind, homotopy_weight_kind
@@ -39,7 +40,7 @@ from locoman.to.terms.dynamics import (
     same_object_wrench_kind,
     wrench_kind,
 )
-from locoman.to.terms.kinematics import frame_point_kind, kinematics_kind, link_spheres_kind
+from locoman.to.terms.kinematics import kinematics_kind, link_point_kind, link_spheres_kind
 from locoman.to.terms.supports import support_contact_kind, support_wrench_kind
 from locoman.to.transcription import RobotTerms
 
@@ -64,12 +65,14 @@ def g1_terms() -> RobotTerms:
     kin = SymbolicKinematics(model)
     frames = contact_frames()
     spheres = {link: link_spheres_kind(kin, link) for link in collision_links()}
-    return RobotTerms(kinematics_kind(kin, frames), spheres, kin.mass, frames)
+    pointed = (*g1.HAND_LINKS, *g1.FOOT_LINKS, *(link for link, _, _ in BODY_POINTS))
+    points = {link: link_point_kind(kin, link) for link in pointed}
+    return RobotTerms(kinematics_kind(kin, frames), spheres, points, kin.mass, frames)
 
 
 def generic_kinds() -> list[TermKind]:
     """Every kind that does not depend on the robot model."""
-    kinds = [frame_point_kind(), robot_step_kind(), object_step_kind(), same_object_wrench_kind()]
+    kinds = [robot_step_kind(), object_step_kind(), same_object_wrench_kind()]
     kinds += [wrench_kind(at, about) for at, about in (("point", "point"), ("object", "point"))]
     kinds += [wrench_kind("point", "object")]
     kinds += [foot_patch_kind(o) for o in ONSETS] + [hand_contact_kind(o) for o in ONSETS]
@@ -90,4 +93,5 @@ def generic_kinds() -> list[TermKind]:
 
 def all_kinds(robot: RobotTerms) -> list[TermKind]:
     """The robot's kinds and the generic ones: the compiled set."""
-    return [robot.kinematics, *robot.link_spheres.values(), *generic_kinds()]
+    robot_kinds = [robot.kinematics, *robot.link_spheres.values(), *robot.link_points.values()]
+    return [*robot_kinds, *generic_kinds()]
