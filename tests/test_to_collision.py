@@ -10,13 +10,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from locoman.config.to import ContactCfg
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.to.collision import (
+    KINDS,
     CollisionCfg,
-    CollisionTerms,
     Obstacle,
-    SphereBox,
     box_clearance,
     box_corners,
     edge_point_counts,
@@ -24,11 +24,15 @@ from locoman.to.collision import (
     link_spheres,
     obstacles_from_objects,
     penetration_residual,
-    self_collision_penetrations,
     sphere_box_penetration,
     sphere_sphere_penetration,
 )
-from locoman.to.kinematics import SymbolicKinematics
+from locoman.to.costs import CostWeights
+from locoman.to.layout import NodeLayout
+from locoman.to.modes import NodeMode
+from locoman.to.terms.collisions import collision_kind, homotopy_weight_kind
+from locoman.to.terms.library import g1_terms
+from locoman.to.transcription import Numbers, transcribe
 
 HALF = np.array([0.3, 0.2, 0.05])
 CFG = CollisionCfg()
@@ -83,9 +87,9 @@ def test_a_touching_pair_keeps_the_sphere_out_with_the_least_margin(local, radiu
     |x|'s smoothing), and p is the full margin's shifted by the difference."""
     local = np.array(local)
     frame = (ca.DM.zeros(3), ca.DM.eye(3), ca.DM(HALF))
-    touching = SphereBox(ca.DM(local), radius, *frame, touching=True).penetration(CFG)
-    full = SphereBox(ca.DM(local), radius, *frame).penetration(CFG)
     least = np.log(3.0) * CFG.smoothing_m
+    touching = sphere_box_penetration(ca.DM(local), radius, *frame, CFG, least)
+    full = sphere_box_penetration(ca.DM(local), radius, *frame, CFG)
     assert float(touching - full) == pytest.approx((CFG.margin_m - least) / CFG.length_m)
     if float(touching) >= 0.0:
         assert _signed_distance(local) >= radius - 1e-3
@@ -163,18 +167,27 @@ def _mujoco_self_contacts(q35: np.ndarray) -> set[frozenset[str]]:
 def test_self_collision_penalises_what_mujoco_finds_in_collision(roll):
     """Standing, neither MuJoCo nor the penalty finds a collision; with the left arm swung
     into the torso both do."""
-    kin = SymbolicKinematics(g1.g1_pinocchio_model())
-    pairs = CollisionCfg().self_pairs
-    terms = CollisionTerms()
-    terms.add_penetrations("penalty", self_collision_penetrations(kin.frame_pose, pairs, 0.0))
-    cost = ca.Function("c", [kin.q], [ca.sumsqr(terms.residuals(0.01, 1.0))])
+    only_self = dict.fromkeys(KINDS, "off") | {"self_collision": "penalty"}
+    numbers = Numbers(CostWeights(), ContactCfg(), CollisionCfg(**only_self), (), ())
+    mode = NodeMode((True, True), (None, None), ())
+    tr = transcribe([mode, mode], np.zeros((NodeLayout.of(0).n_params, 2)), numbers, g1_terms())
+
+    def cost(q35: np.ndarray) -> float:
+        x = np.zeros(tr.n_x)
+        for k in range(2):
+            x[k * tr.layout.width + np.arange(35)] = q35
+        _, costs = tr.values(x)
+        return costs["sphere_sphere_penalty"]
+
     standing = g1.standing_q35()
-    assert float(cost(standing)) < 1e-4  # (softness ln 2)^2 per pair at most, near contact
+    pairs = len(tr.pairs)
+    # (softness ln 2)^2 per pair at most, near contact, at the weight of the configuration
+    assert cost(standing) < 1e-4 * CostWeights().collision * pairs
     assert not _mujoco_self_contacts(standing)
     hugging = standing.copy()
     hugging[6 + g1.G1_JOINT_NAMES.index("left_shoulder_roll_joint")] = roll
     assert frozenset(("left_shoulder_yaw_link", "torso_link")) in _mujoco_self_contacts(hugging)
-    assert float(cost(hugging)) > 1.0
+    assert cost(hugging) > CostWeights().collision
 
 
 def test_an_obstacle_is_the_bounding_box_of_a_fixed_object_in_the_world():
@@ -254,20 +267,28 @@ def test_the_hard_constraint_keeps_a_body_out_where_the_penalty_lets_it_in(treat
     box's inscribed ellipsoid (alpha = 1 at every node) and ends at the true box: alpha
     at zero, p >= 0 to 0.1 mm, and the ball as close to the box as (11) lets it."""
     nodes, radius = 21, 0.05
-    centre, R, half = ca.DM.zeros(3), ca.DM.eye(3), ca.DM([0.1, 0.1, 0.1])
     x = ca.SX.sym("x", 3, nodes)
     alpha = ca.SX.sym("alpha", nodes)
-    terms = [CollisionTerms() for _ in range(nodes)]
+    term = collision_kind("sphere_fixed_box", treatment).term.function
+    box = {"radius": radius, "centre": [0.0, 0.0, 0.0], "yaw": 0.0, "half": [0.1] * 3}
+    box |= {"margin": CFG.margin_m, "smoothing": CFG.smoothing_m, "length": CFG.length_m}
+    if treatment == "penalty":
+        box |= {"weight": 1e-2, "softness": CFG.softness}
+    if treatment == "homotopy":
+        box |= {"stand_in_margin": CFG.margin_m}
+    p = np.concatenate([np.atleast_1d(v) for v in box.values()])
+    rows, residuals = [], []
     for k in range(nodes):
-        terms[k].add(treatment, [SphereBox(x[:, k], radius, centre, R, half)], CFG)
+        inputs = ca.vertcat(x[:, k], alpha[k]) if treatment == "homotopy" else x[:, k]
+        g_k, _, r_k = term(inputs, p)
+        rows.append(g_k)
+        residuals.append(r_k)
+        if treatment == "homotopy":
+            residuals.append(homotopy_weight_kind().term.function(alpha[k], 2e2)[2])
     acceleration = x[:, 2:] - 2 * x[:, 1:-1] + x[:, :-2]
-    w_hom = 2e2
-    residuals = ca.vertcat(
-        *[t.residuals(CFG.softness, 1e-2, alpha[k], w_hom) for k, t in enumerate(terms)]
-    )
-    cost = 1e3 * ca.sumsqr(acceleration) + ca.sumsqr(residuals)
+    cost = 1e3 * ca.sumsqr(acceleration) + ca.sumsqr(ca.vertcat(*residuals))
     ends = ca.vertcat(x[:, 0] - [-0.5, 0.0, 0.0], x[:, -1] - [0.5, 0.0, 0.0])
-    g = ca.vertcat(ends, *[t.inequalities(alpha[k]) for k, t in enumerate(terms)])
+    g = ca.vertcat(ends, *rows)
     solver = ca.nlpsol(
         "toy",
         "ipopt",
@@ -276,37 +297,45 @@ def test_the_hard_constraint_keeps_a_body_out_where_the_penalty_lets_it_in(treat
     )
     start = np.c_[np.linspace(-0.5, 0.5, nodes), np.full(nodes, 0.01), np.zeros(nodes)].T
     homotopy = treatment == "homotopy"
-    rows = g.numel()
+    n_rows = g.numel()
+    true_box = ca.Function(
+        "p",
+        [x],
+        [
+            ca.vertcat(
+                *[
+                    sphere_box_penetration(x[:, k], radius, ca.DM.zeros(3), ca.DM.eye(3), 0.1, CFG)
+                    for k in range(nodes)
+                ]
+            )
+        ],
+    )
 
     def solve(alpha_low: float, alpha_high: float) -> tuple[np.ndarray, np.ndarray]:
-        """The path (3, nodes) and each node's p of the true box, alpha within bounds."""
+        """Each node's alpha and p of the true box, alpha within bounds."""
         out = solver(
             x0=np.r_[start.ravel(order="F"), np.full(nodes, alpha_high)],
             lbx=np.r_[np.full(3 * nodes, -np.inf), np.full(nodes, alpha_low)],
             ubx=np.r_[np.full(3 * nodes, np.inf), np.full(nodes, alpha_high)],
-            lbg=np.zeros(rows),
-            ubg=np.r_[np.zeros(6), np.full(rows - 6, np.inf)],
+            lbg=np.zeros(n_rows),
+            ubg=np.r_[np.zeros(6), np.full(n_rows - 6, np.inf)],
         )
         assert solver.stats()["success"]
         solution = np.asarray(out["x"]).ravel()
         path = solution[: 3 * nodes].reshape(3, nodes, order="F")
-        p = [
-            ca.Function("p", [x], [SphereBox(x[:, k], radius, centre, R, half).penetration(CFG)])
-            for k in range(nodes)
-        ]
-        return solution[3 * nodes :], np.array([float(p_k(path)) for p_k in p])
+        return solution[3 * nodes :], np.asarray(true_box(path)).ravel()
 
     alpha, p = solve(0.0, 1.0 if homotopy else 0.0)
     if treatment == "penalty":
         assert p.min() < -0.1  # more than a centimetre inside, with L = 0.1 m
-        assert terms[0].inequalities().numel() == 0
+        assert n_rows == 6
     else:
         # (13) ends near, not at, alpha = 0 (w_hom trades it against the path), so the
         # true box holds to alpha (p~ - p): here 0.03 mm.
         assert p.min() >= (-1e-3 if homotopy else -1e-6)
         assert p.min() < 0.05  # within 5 mm of the margin: the true box shapes the path
     if treatment == "constraint":
-        assert residuals.numel() == 0
+        assert ca.vertcat(*residuals).numel() == 0
     if homotopy:
         assert alpha.max() < 1e-3
         # The stand-in alone (alpha held at 1), an ellipsoid inscribed in the box, lets the

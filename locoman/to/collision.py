@@ -271,31 +271,6 @@ def sphere_ellipsoid_penetration(
     return ca.sumsqr(x / (half + radius + cfg.margin_m)) - 1.0
 
 
-@dataclasses.dataclass(frozen=True)
-class SphereBox:
-    """A sphere (radius 0: a point) of one body against a box of another."""
-
-    centre: ca.SX  # (3,) world [m]
-    radius: float  # [m]
-    box_centre: ca.SX  # (3,) world [m]
-    R: ca.SX  # the box's axes
-    half: ca.SX  # (3,) half sizes [m]
-    touching: bool = False  # kept out of the box only: its margin the least, ln(3) smoothing
-
-    def penetration(self, cfg) -> ca.SX:
-        """p of the true box (:func:`sphere_box_penetration`)."""
-        margin = np.log(3.0) * cfg.smoothing_m if self.touching else cfg.margin_m
-        return sphere_box_penetration(
-            self.centre, self.radius, self.box_centre, self.R, self.half, cfg, margin
-        )
-
-    def stand_in(self, cfg) -> ca.SX:
-        """p~ of the box's smooth stand-in (:func:`sphere_ellipsoid_penetration`)."""
-        return sphere_ellipsoid_penetration(
-            self.centre, self.radius, self.box_centre, self.R, self.half, cfg
-        )
-
-
 def sphere_sphere_penetration(a: ca.SX, b: ca.SX, radius: float) -> ca.SX:
     """(11) of two spheres whose radii (and margin) sum to ``radius``: d = |a - b| / radius,
     p = d^2 - 1."""
@@ -370,67 +345,3 @@ def link_spheres(link: str) -> tuple[Sphere, ...]:
     if not spheres:
         raise ValueError(f"the G1 link {link!r} has no collision capsule")
     return tuple(spheres)
-
-
-def self_collision_penetrations(frame_pose, pairs: list[list[str]], margin: float) -> list[ca.SX]:
-    """p of (11) between the spheres of each link pair, each sphere pair an ellipsoid (a
-    ball) of radius r_a + r_b + margin about one centre.
-
-    Args:
-        frame_pose: name -> (R, p) symbolic world pose of a link.
-        pairs: Link pairs.
-        margin: [m].
-    """
-    out = []
-    poses = {}
-    for link in {name for pair in pairs for name in pair}:
-        R, p = frame_pose(link)
-        poses[link] = [(p + R @ ca.DM(s.centre), s.radius) for s in link_spheres(link)]
-    for a, b in pairs:
-        for ca_, ra in poses[a]:
-            for cb, rb in poses[b]:
-                out.append(sphere_sphere_penetration(ca_, cb, ra + rb + margin))
-    return out
-
-
-@dataclasses.dataclass
-class CollisionTerms:
-    """The collision terms of one node, sorted by how the configuration treats their kind:
-    the p of the penalty (12) and of the hard constraint (11), and the (p~, p) of the
-    homotopy (13)."""
-
-    penalized: list[ca.SX] = dataclasses.field(default_factory=list)
-    constrained: list[ca.SX] = dataclasses.field(default_factory=list)
-    homotopy: list[tuple[ca.SX, ca.SX]] = dataclasses.field(default_factory=list)
-
-    def add(self, treatment: str, pairs: list[SphereBox], cfg) -> None:
-        """Add the sphere-box pairs of one kind, treated by ``treatment``
-        (:data:`TREATMENTS`)."""
-        if treatment == "homotopy":
-            self.homotopy += [(pair.stand_in(cfg), pair.penetration(cfg)) for pair in pairs]
-        else:
-            self.add_penetrations(treatment, [pair.penetration(cfg) for pair in pairs])
-
-    def add_penetrations(self, treatment: str, penetrations: list[ca.SX]) -> None:
-        """Add the p of one kind, treated by ``treatment``: ``penalty`` or ``constraint``."""
-        if treatment == "penalty":
-            self.penalized += penetrations
-        elif treatment == "constraint":
-            self.constrained += penetrations
-
-    def residuals(
-        self, softness: ca.SX, weight: ca.SX, alpha: ca.SX = 0.0, w_hom: ca.SX = 0.0
-    ) -> ca.SX:
-        """The residuals of (12), scaled by sqrt(weight), and with homotopy terms the one
-        of (13b), sqrt(w_hom) alpha: their sum of squares is the weighted penalty."""
-        r = [ca.sqrt(weight) * penetration_residual(p, softness) for p in self.penalized]
-        if self.homotopy:
-            r.append(ca.sqrt(w_hom) * alpha)
-        return ca.vertcat(*r) if r else ca.SX(0, 1)
-
-    def inequalities(self, alpha: ca.SX = 0.0) -> ca.SX:
-        """The left-hand sides of (11), p >= 0, and of (13a), alpha p~ + (1 - alpha) p >= 0."""
-        rows = self.constrained + [
-            alpha * stand_in + (1.0 - alpha) * p for stand_in, p in self.homotopy
-        ]
-        return ca.vertcat(*rows) if rows else ca.SX(0, 1)

@@ -87,10 +87,9 @@ def palm_spheres(frames: ContactFrames, i: int) -> list[RobotSphere]:
 def foot_spheres(frames: ContactFrames, i: int) -> list[RobotSphere]:
     """A heel and a toe sphere resting on foot i's sole."""
     sole = np.asarray(frames.sole["left_sole"], dtype=float)
+    link = g1.FOOT_LINKS[i]
     return [
-        _point(
-            f"{FEET[i]}/{which}", FOOT_SPHERE_M, g1.FOOT_LINKS[i], sole + [x, 0.0, FOOT_SPHERE_M]
-        )
+        _point(f"{FEET[i]}/{which}", FOOT_SPHERE_M, link, sole + np.array([x, 0.0, FOOT_SPHERE_M]))
         for which, x in zip(("heel", "toe"), FOOT_SPHERE_X, strict=True)
     ]
 
