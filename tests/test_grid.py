@@ -140,7 +140,7 @@ def test_the_keys_hash_the_code_each_part_imports():
     evaluation's adds its own; both follow imports, lazy ones too."""
     solve = imported_sources(SOLVE_MODULES)
     names = {str(p.relative_to(PACKAGE)) for p in solve}
-    assert {"to/trajopt.py", "to/supports.py", "scene/builder.py", "kernels.py"} <= names
+    assert {"to/optimizer.py", "to/supports.py", "scene/builder.py", "kernels.py"} <= names
     assert {"contact/io.py", "retarget/io.py", "grid/runs.py", "__init__.py"} <= names
     assert "sim/evaluate.py" not in names and "grid/figures.py" not in names
     evaluate = {str(p.relative_to(PACKAGE)) for p in imported_sources(EVALUATE_MODULES)}

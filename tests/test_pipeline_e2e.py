@@ -74,6 +74,8 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir, run_cli):
     solve = json.loads((root / "solve" / "metrics.json").read_text())
     assert solve["status"] == "Solve_Succeeded", solve
     assert solve["max_constraint_violation"] <= 1e-6
+    # Issue 48: the solution checked in MuJoCo; no pair it needs is missing.
+    assert solve["collision_rounds"] and solve["pairs_missing"] == []
     steps = read_json_messages(root / "solve" / "trajectory.mcap", "/tf")
     assert len(steps) == solve["nodes"]
     evaluate = json.loads((root / "evaluate" / "metrics.json").read_text())

@@ -278,4 +278,6 @@ def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):
         "hands_environment",
         "object_environment",
         "feet_object",
+        "found",  # pairs found along a solution, none before
+        "found_hard",
     }

@@ -69,6 +69,7 @@ WALL_CLOCK_KEYS = frozenset(
         "keyframes_per_second",
         "build_time_s",
         "solve_time_s",
+        "function_time_s",
         "gmr_seconds",
         "kmp_seconds",
         "fit_seconds",
@@ -102,7 +103,7 @@ def split_wall_clock(data: Any) -> tuple[Any, Any]:
 
 # Top-level keys of per-item detail (a row per subtask): they go to details.json, so that
 # `dvc metrics show` and `dvc exp show` compare the headline figures, not hundreds of columns.
-DETAIL_KEYS = frozenset({"per_subtask"})
+DETAIL_KEYS = frozenset({"per_subtask", "deepest_penetration"})
 DETAILS_FILE = "details.json"
 
 

@@ -184,8 +184,11 @@ class EvaluateCfg:
         friction_tol: Largest violation of (3) allowed [N, N m].
         slip_tol_m: Largest stance-foot slip allowed [m].
         penetration_tol_m: Largest average penetration allowed [m].
-        max_penetration_tol_m: Largest penetration at any node [m] (the average hides a
-            deep one; tiny's deepest is 2.4 mm, a foot on the floor).
+        max_penetration_tol_m: Largest penetration at any node, or at any of ``substeps``
+            poses between two (the average hides a deep one; tiny's deepest is 2.3 mm, a
+            foot on the floor) [m].
+        substeps: Poses checked between two nodes (q and the objects linear along the
+            step): a body can pass through a thin one between two nodes.
         goal_tol_m: Largest distance of an object from its target [m], where its subtask
             ends.
         rest_height_tol_m: At the end each object's bottom lies this close to a support's
@@ -205,6 +208,7 @@ class EvaluateCfg:
     slip_tol_m: float = 1e-3
     penetration_tol_m: float = 0.01
     max_penetration_tol_m: float = 0.02
+    substeps: int = 3
     goal_tol_m: float = 0.02
     rest_height_tol_m: float = 0.01
     rest_speed_tol: float = 0.01
@@ -236,4 +240,6 @@ class EvaluateCfg:
         ]
         if self.filmstrip_frames < 1:
             errors.append(("filmstrip_frames", "must be >= 1"))
+        if not 0 <= self.substeps <= 20:
+            errors.append(("substeps", "must be in 0 .. 20"))
         return errors

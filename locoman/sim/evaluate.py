@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 
 import mujoco
 import numpy as np
@@ -32,6 +33,7 @@ from locoman.to.kinematics import pin_configuration, pin_velocity
 from locoman.to.layout import ObjectModel
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2]
+ROBOT = "robot"  # the G1's side of a pair of bodies
 
 
 def euler_rates_to_world(rpy: np.ndarray) -> np.ndarray:
@@ -85,6 +87,24 @@ def penetrations(
         totals.append(depth)
         worst.append(deepest)
     return np.array(totals), worst
+
+
+def poses(
+    traj: dict[str, np.ndarray], substeps: int, first: int = 1
+) -> Iterator[tuple[int, float, np.ndarray, np.ndarray]]:
+    """(node, fraction, q35, object_q (M, 6)) at every node from ``first`` (by default not
+    the initial state, which is given, not solved for) and ``substeps`` poses after each
+    node but the last (q and the objects' (p, rpy) linear along the step)."""
+    q, object_q = traj["q"], traj["object_q"]
+    n = len(q)
+    for k in range(n):
+        if k >= first:
+            yield k, 0.0, q[k], object_q[k]
+        if k == n - 1:
+            continue
+        for s in range(1, substeps + 1):
+            t = s / (substeps + 1)
+            yield k, t, (1 - t) * q[k] + t * q[k + 1], (1 - t) * object_q[k] + t * object_q[k + 1]
 
 
 @dataclasses.dataclass(frozen=True)

@@ -101,6 +101,17 @@ class CollisionCfg:
             object's bounding box. Off by default: S2's scene keeps the walk clear of the
             table's legs, and with it on S2's exact-Hessian phase crawled (cost 2358 at
             1000 iterations, not converged, with the place target by the table's leg).
+        found: The pairs found along a solution (:mod:`locoman.to.pair_search`): every pair
+            of bodies that a replay of the solution in MuJoCo finds closer than
+            ``audit_margin_m`` and the TO does not model joins the problem at the nodes
+            around, and the solve goes on from where it stopped, at most ``rounds`` times;
+            ``off``: no rounds, the minimal set alone.
+        found_hard: The found pairs still penetrated after a round with them (the pairs that
+            keep coming back: a hand through a post, a carried box into a platform) join
+            again under this treatment; ``off``: they stay as they are.
+        rounds: The most rounds of :attr:`found` pairs after the first solve.
+        audit_margin_m: A pair of bodies closer than this in the replay is found [m].
+        audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
         object_environment: Between the corners of the object, while no support holds it,
             and every fixed object's bounding box, and between the obstacles' vertical and
             top edges and the object. (As the constraint (11) the four bottom corners of a
@@ -126,6 +137,11 @@ class CollisionCfg:
     hands_environment: str = "penalty"
     feet_environment: str = "off"
     object_environment: str = "penalty"
+    found: str = "penalty"
+    found_hard: str = "constraint"
+    rounds: int = 3
+    audit_margin_m: float = 0.005
+    audit_substeps: int = 3
     margin_m: float = 0.01
     smoothing_m: float = 0.004
     length_m: float = 0.1
@@ -153,6 +169,12 @@ class CollisionCfg:
                 )
         if self.length_m <= 0.0:
             errors.append(("length_m", "must be > 0 m"))
+        if not 0 <= self.rounds <= 20:
+            errors.append(("rounds", "must be in 0 .. 20"))
+        if not 0 <= self.audit_substeps <= 20:
+            errors.append(("audit_substeps", "must be in 0 .. 20"))
+        if not 0.0 <= self.audit_margin_m <= 0.1:
+            errors.append(("audit_margin_m", "must be in [0, 0.1] m"))
         if self.softness <= 0.0:
             errors.append(("softness", "must be > 0"))
         if self.smoothing_m <= 0.0 or self.margin_m < np.log(3.0) * self.smoothing_m:
@@ -176,6 +198,8 @@ KINDS = (
     "hands_environment",
     "feet_environment",
     "object_environment",
+    "found",
+    "found_hard",
 )
 
 
@@ -330,18 +354,45 @@ class Sphere:
     radius: float
 
 
+# The G1's collision geoms the TO covers with spheres: its fitted capsules and spheres, and
+# the shoulders' cylinders (a chain of spheres along the axis, which rounds their ends).
+_SPHERED = tuple(
+    int(t)
+    for t in (
+        mujoco.mjtGeom.mjGEOM_CAPSULE,
+        mujoco.mjtGeom.mjGEOM_SPHERE,
+        mujoco.mjtGeom.mjGEOM_CYLINDER,
+    )
+)
+
+
 @functools.cache
 def link_spheres(link: str) -> tuple[Sphere, ...]:
-    """The spheres of a G1 link's collision capsules."""
+    """The spheres of a G1 link's collision geoms (but the feet's boxes, which the TO covers
+    with its sole frames' heel and toe spheres)."""
     model = g1.g1_mjmodel()
     body = model.body(link).id
     spheres = []
     for geom in range(model.ngeom):
         if model.geom_bodyid[geom] != body or model.geom_group[geom] != g1.COLLISION_GROUP:
             continue
-        if model.geom_type[geom] != mujoco.mjtGeom.mjGEOM_CAPSULE:
+        if int(model.geom_type[geom]) not in _SPHERED:
             continue
-        spheres += [Sphere(link, c, r) for c, r in g1.capsule_spheres(model, geom)]
+        spheres += [Sphere(link, c, r) for c, r in _axis_spheres(model, geom)]
     if not spheres:
-        raise ValueError(f"the G1 link {link!r} has no collision capsule")
+        raise ValueError(f"the G1 link {link!r} has no collision capsule, sphere or cylinder")
     return tuple(spheres)
+
+
+def _axis_spheres(model: mujoco.MjModel, geom: int) -> list[tuple[np.ndarray, float]]:
+    """A capsule or sphere as :func:`g1.capsule_spheres` has it; a cylinder as the capsule
+    of its radius and axis."""
+    if model.geom_type[geom] != mujoco.mjtGeom.mjGEOM_CYLINDER:
+        return g1.capsule_spheres(model, geom)
+    radius, half = model.geom_size[geom][:2]
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, model.geom_quat[geom])
+    axis = rot.reshape(3, 3)[:, 2]
+    count = int(np.ceil(2.0 * half / radius)) + 1
+    pos = model.geom_pos[geom]
+    return [(pos + t * half * axis, float(radius)) for t in np.linspace(-1.0, 1.0, count)]

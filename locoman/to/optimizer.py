@@ -192,6 +192,7 @@ class TrajectoryOptimizer:
         numbers: Numbers | None = None,
         warm_start: Trajectory | None = None,
         pairs: list[CollisionPair] | None = None,
+        hessian: str | None = None,
     ) -> Trajectory:
         """Solve; a failed solve is a trajectory with ``success`` False, not an exception.
 
@@ -199,15 +200,20 @@ class TrajectoryOptimizer:
             keyframe_costs: (9), (10) on; default: the configuration's.
             numbers: Other weights, objects' masses, frictions (another grid cell); the
                 assembled NLP is reused where the structure is the same.
-            warm_start: A solution of the same structure (another cell of a grid): IPOPT
-                starts from its primal-dual point instead of Sec. IV-C.2's guess.
+            warm_start: A solution of the same variables (another cell of a grid, the
+                previous round of :mod:`locoman.to.pair_search`): IPOPT starts from its
+                primal-dual point instead of Sec. IV-C.2's guess (from its primal point
+                where the constraint rows differ).
             pairs: The collision pairs; default: the configuration's.
+            hessian: The Hessian (:data:`locoman.to.assembly.HESSIANS`) of this solve;
+                default: the configuration's, with its switch to the exact one.
         """
         keyframe_costs = keyframe_costs or self.keyframe_costs
         numbers = numbers or self.numbers
         tic = time.perf_counter()
         tr = self.transcribe(keyframe_costs, numbers, pairs)
-        hessian = self.cfg.solver.hessian
+        hessian = hessian or self.cfg.solver.hessian
+        switch_at = self.switch_at if hessian == "gauss_newton" else None
         nlp = self._nlp(tr, hessian)
         transcribed_s = time.perf_counter() - tic
         inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
@@ -219,13 +225,17 @@ class TrajectoryOptimizer:
         X0 = initial_guess(
             layout, inputs, schedule, modes, self.cfg.solver, self.robot.mass, homotopy
         )
-        X0 = np.clip(X0, lo, hi)
-        p = parameter_vector(tr.blocks)
-        args = (X0.ravel(order="F"), lo.ravel(order="F"), hi.ravel(order="F"), p)
+        X0 = np.clip(X0, lo, hi).ravel(order="F")
         warm = warm_start.warm_start if warm_start is not None else None
+        if warm is not None and warm.lam_g.shape != (nlp.n_g,):
+            # Other constraint rows (pairs found under a hard treatment): its primal point
+            # only, the multipliers start afresh.
+            X0, warm = np.clip(warm.x, lo.ravel(order="F"), hi.ravel(order="F")), None
+        p = parameter_vector(tr.blocks)
+        args = (X0, lo.ravel(order="F"), hi.ravel(order="F"), p)
         result = nlp.solve(*args, warm)
-        if result.success or self.switch_at is None or result.iterations < self.switch_at:
-            return self._trajectory(result, tr, nlp, transcribed_s)
+        if result.success or switch_at is None or result.iterations < switch_at:
+            return self._trajectory(result, tr, nlp, transcribed_s, hessian)
         # Gauss-Newton used its share of the iterations without converging: the exact
         # Hessian goes on from its primal-dual point with what is left.
         limits = {"max_iter": self.cfg.solver.max_iterations - result.iterations}
@@ -240,7 +250,7 @@ class TrajectoryOptimizer:
         )
         exact = self._nlp(tr, "exact")
         polished = exact.solve(*args, result.warm_start, limits)
-        return self._trajectory(polished, tr, nlp, transcribed_s, before=result)
+        return self._trajectory(polished, tr, nlp, transcribed_s, "exact", before=result)
 
     def _trajectory(
         self,
@@ -248,6 +258,7 @@ class TrajectoryOptimizer:
         tr: Transcription,
         nlp: BlockNLP,
         transcribed_s: float,
+        hessian: str,
         before: NLPResult | None = None,
     ) -> Trajectory:
         """The trajectory of ``result``; ``before``: the Gauss-Newton phase it went on from."""
@@ -265,9 +276,7 @@ class TrajectoryOptimizer:
 
         objects = [m.objects for m in self.modes]
         phases = [self.schedule.phase(k).name if k > 0 else "start" for k in range(n)]
-        exact_iterations = (
-            result.iterations if before is not None or self.cfg.solver.hessian == "exact" else 0
-        )
+        exact_iterations = result.iterations if hessian == "exact" else 0
         return Trajectory(
             status=result.status,
             success=result.success,

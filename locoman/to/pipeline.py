@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +22,7 @@ from locoman.scene import g1
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
 from locoman.scene.plan_state import AS_BUILT, REST_TOL_M, top_face, world_pose
 from locoman.scene.rotations import matrix_to_rpy, quat_wxyz_to_matrix, rpy_to_matrix
+from locoman.sim.audit import ClosePair
 from locoman.sim.foxglove import scene_entities
 from locoman.to.collision import obstacles_from_objects
 from locoman.to.compile import cache_dir
@@ -27,6 +30,7 @@ from locoman.to.inputs import Keyframe, TOInputs, object_pose
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import HANDS, ObjectModel
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
+from locoman.to.pair_search import Round, Scene, search
 from locoman.to.schedule import Schedule
 from locoman.to.supports import Chassis, OnObject, Support, Surface
 
@@ -231,7 +235,14 @@ def solve_scenario(
     inputs = load_inputs(scene_dir, contacts_dir, retarget_dir, cfg.contacts)
     optimizer = build_optimizer(inputs, cfg)
     traj = optimizer.solve()
-    write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir)
+    obstacles = {o.name: o for o in inputs.obstacles}
+    scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames())
+    model = load_scene_model(scene_dir)
+    traj, rounds, remaining = search(optimizer, traj, model, scene, cfg.collision)
+    if remaining and traj.success:
+        # The rounds ran out with pairs the solution needs still missing: not a solution.
+        traj = dataclasses.replace(traj, success=False, status="Collision_Pairs_Missing")
+    write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir, rounds, remaining)
     return traj
 
 
@@ -242,6 +253,8 @@ def write_solution(
     optimizer: TrajectoryOptimizer,
     cfg: SolveCfg,
     scene_dir: Path,
+    rounds: Sequence[Round] = (),
+    remaining: Sequence[ClosePair] = (),
 ) -> None:
     """The stage's outputs: trajectory, MCAP (frames and the scene's geometry), metrics (and
     timing)."""
@@ -311,5 +324,10 @@ def write_solution(
             "nodes": n,
             "duration_s": float(traj.time[-1]),
             "phases": [[p.name, p.subtask, p.nodes] for p in optimizer.schedule.phases],
+            "collision_pairs": traj.collision_pairs,
+            "collision_rounds": [dataclasses.asdict(r) for r in rounds],
+            "pairs_found": sum(r.pairs_added for r in rounds),
+            "pairs_missing": sorted({c.label for c in remaining}),
+            "function_time_s": traj.function_time_s,
         },
     )

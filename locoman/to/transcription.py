@@ -97,10 +97,13 @@ class CollisionPair:
         geometry: A key of :data:`locoman.to.terms.collisions.GEOMETRIES`.
         sphere: The robot's sphere (the ``sphere_*`` geometries).
         other: ``sphere_sphere``'s second sphere.
-        obj: The moving object of the ``*object*`` geometries.
+        obj: The moving object of the ``*object*`` geometries (the point's, for
+            ``object_point_*``).
+        box_obj: ``object_point_object_box``'s other object, whose box it is.
         numbers: The geometry's numbers (box centre and half sizes, a point, a yaw) [m, rad].
         touching: Kept out of the box only, with the least margin (a hand holding an open
             object keeps its forearm out of it).
+        fraction: Where along the step from ``node`` to the next [-]: 0 at ``node``.
         label: What the pair is, for reports (``left_elbow_link/1 | basket/floor``).
     """
 
@@ -110,8 +113,10 @@ class CollisionPair:
     sphere: RobotSphere | None = None
     other: RobotSphere | None = None
     obj: int | None = None
+    box_obj: int | None = None
     numbers: dict = dataclasses.field(default_factory=dict)
     touching: bool = False
+    fraction: float = 0.0
     label: str = ""
 
 
@@ -257,10 +262,16 @@ def _boxes(obj: ObjectModel, parts: tuple) -> list[tuple[np.ndarray, np.ndarray]
     return [(np.asarray(c, dtype=float), np.asarray(h, dtype=float)) for c, h in parts]
 
 
+def object_boxes(obj: ObjectModel) -> list[tuple[np.ndarray, np.ndarray]]:
+    """An object's collision boxes in its frame, (centre [m], half sizes [m]) each: a solid
+    one's box, else its parts."""
+    return [_object_box(obj)] if obj.solid else _boxes(obj, obj.parts)
+
+
 # --- collision pairs ------------------------------------------------------------------------
 
 
-def _sphere_box_pairs(
+def sphere_box_pairs(
     node: int, kind: str, spheres, boxes, j: int, name: str, touching: bool = False
 ) -> Iterator[CollisionPair]:
     for b, (centre, half) in enumerate(boxes):
@@ -303,7 +314,7 @@ def node_collision_pairs(
         under = boxes if obj.solid else _boxes(obj, obj.wheels or obj.parts)
         name = obj.name
         if "object_body" in on:
-            yield from _sphere_box_pairs(k, "object_body", body, boxes, j, name)
+            yield from sphere_box_pairs(k, "object_body", body, boxes, j, name)
         if "hands_object" in on:
             # A palm that does not touch the object; a solid box's own corners catch a
             # forearm, while a trolley's thin handle bar passes between the palms and the
@@ -313,47 +324,58 @@ def node_collision_pairs(
             for i in range(2):
                 if mode.hands[i] != j:
                     arms += palms[i] if obj.solid else palms[i] + forearms[i]
-            yield from _sphere_box_pairs(k, "hands_object", arms + elbows, boxes, j, name)
+            yield from sphere_box_pairs(k, "hands_object", arms + elbows, boxes, j, name)
             # The forearms of the hands holding an open object (a basket's wall) are kept
             # out of it, touching allowed; a gripped handle sits in the hand.
             if not obj.solid and not _prehensile(contact, obj):
                 holding = [s for i in range(2) if mode.hands[i] == j for s in forearms[i]]
-                yield from _sphere_box_pairs(
+                yield from sphere_box_pairs(
                     k, "hands_object", holding, boxes, j, name, touching=True
                 )
         if "legs_object" in on:
-            yield from _sphere_box_pairs(k, "legs_object", legs, boxes, j, name)
+            yield from sphere_box_pairs(k, "legs_object", legs, boxes, j, name)
         if "feet_object" in on and j in mode.underfoot:
             # Off an object on the floor (S1's box, S2's wheels), but for a foot on its top.
             feet_j = [s for i in range(2) if mode.feet_on[i] != j for s in feet[i]]
-            yield from _sphere_box_pairs(k, "feet_object", feet_j, under, j, name)
+            yield from sphere_box_pairs(k, "feet_object", feet_j, under, j, name)
     if cfg.object_environment != "off":
         for j, obj in enumerate(objects):
             if mode.carried(j):
-                yield from _object_environment_pairs(k, j, obj, obstacles)
+                yield from object_environment_pairs(k, j, obj, obstacles)
     arms = [s for i in range(2) for s in palms[i] + forearms[i]]
     both_feet = feet[0] + feet[1]
     for kind, spheres in (("hands_environment", arms), ("feet_environment", both_feet)):
         if getattr(cfg, kind) == "off":
             continue
         for obstacle in obstacles:
-            for s in spheres:
-                yield CollisionPair(
-                    k,
-                    kind,
-                    "sphere_fixed_box",
-                    sphere=s,
-                    numbers=_obstacle_numbers(obstacle),
-                    label=f"{s.name} | {obstacle.name}",
-                )
+            yield from obstacle_pairs(k, kind, spheres, obstacle)
+
+
+def obstacle_pairs(
+    k: int, kind: str, spheres: list[RobotSphere], obstacle: Obstacle
+) -> Iterator[CollisionPair]:
+    """Each sphere against a fixed box at node k."""
+    for s in spheres:
+        yield CollisionPair(
+            k,
+            kind,
+            "sphere_fixed_box",
+            sphere=s,
+            numbers=_obstacle_numbers(obstacle),
+            label=f"{s.name} | {obstacle.name}",
+        )
 
 
 def _obstacle_numbers(obstacle: Obstacle) -> dict:
     return {"centre": obstacle.centre, "yaw": obstacle.yaw, "half": obstacle.half_extents}
 
 
-def _object_environment_pairs(
-    k: int, j: int, obj: ObjectModel, obstacles: tuple[Obstacle, ...]
+def object_environment_pairs(
+    k: int,
+    j: int,
+    obj: ObjectModel,
+    obstacles: tuple[Obstacle, ...],
+    kind: str = "object_environment",
 ) -> Iterator[CollisionPair]:
     """Each corner of carried object j against each obstacle, and the obstacles' vertical
     and top edges (points, spaced by the object's smallest half size) against the object."""
@@ -363,7 +385,7 @@ def _object_environment_pairs(
         for c in corners:
             yield CollisionPair(
                 k,
-                "object_environment",
+                kind,
                 "object_point_fixed_box",
                 obj=j,
                 numbers={"point": c, **_obstacle_numbers(obstacle)},
@@ -373,7 +395,7 @@ def _object_environment_pairs(
         for point in edge_points(obstacle, counts):
             yield CollisionPair(
                 k,
-                "object_environment",
+                kind,
                 "fixed_point_object_box",
                 obj=j,
                 numbers={"point": point, "centre": centre, "half": half},
@@ -789,21 +811,30 @@ def _costs(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, op
             b.own(object_pose_kind()).add({"q": at.obj(k, j, "q")}, p)
 
 
+def _pair_inputs(at: _Index, k: int, pair: CollisionPair, cfg: CollisionCfg) -> dict:
+    """The variables of one pair at node k (its spheres' centres, its objects' poses)."""
+    if pair.geometry == "sphere_sphere":
+        return {"a": at.sphere(k, pair.sphere), "b": at.sphere(k, pair.other)}
+    x = {"c": at.sphere(k, pair.sphere)} if pair.sphere is not None else {}
+    if pair.box_obj is not None:
+        return x | {"q_a": at.obj(k, pair.obj, "q"), "q_o": at.obj(k, pair.box_obj, "q")}
+    if pair.obj is not None:
+        return x | {"q_o": at.obj(k, pair.obj, "q")}
+    return x
+
+
 def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None:
     """Every pair under its kind's treatment; (13b) at each node with a homotopy pair."""
     touching_margin = math.log(3.0) * cfg.smoothing_m
     homotopy_nodes = set()
     for pair in pairs:
         treatment = getattr(cfg, pair.kind)
-        kind = collision_kind(pair.geometry, treatment)
+        kind = collision_kind(pair.geometry, treatment, pair.fraction > 0.0)
         k = pair.node
+        x = _pair_inputs(at, k, pair, cfg)
         if pair.geometry == "sphere_sphere":
-            x = {"a": at.sphere(k, pair.sphere), "b": at.sphere(k, pair.other)}
             p = {"radius": pair.sphere.radius + pair.other.radius + cfg.margin_m}
         else:
-            x = {"c": at.sphere(k, pair.sphere)} if pair.sphere is not None else {}
-            if pair.obj is not None:
-                x |= {"q_o": at.obj(k, pair.obj, "q")}
             p = dict(pair.numbers)
             if pair.sphere is not None:
                 p["radius"] = pair.sphere.radius
@@ -815,7 +846,13 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
             x |= {"alpha": at.var(k, "alpha")}
             p |= {"stand_in_margin": cfg.margin_m}
             homotopy_nodes.add(k)
-        calls = b.own(kind)
-        calls.add(x, p)
+        if pair.fraction > 0.0:
+            p["fraction"] = pair.fraction
+            x_next = _pair_inputs(at, k + 1, pair, cfg)
+            if treatment == "homotopy":
+                x_next |= {"alpha": at.var(k + 1, "alpha")}
+                homotopy_nodes.add(k + 1)
+            x |= {f"{slot}_next": value for slot, value in x_next.items()}
+        b.own(kind).add(x, p)
     for k in sorted(homotopy_nodes):
         b.own(homotopy_weight_kind()).add({"alpha": at.var(k, "alpha")}, {"weight": w.homotopy})

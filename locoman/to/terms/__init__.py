@@ -95,26 +95,32 @@ def term_kind(
 class Calls:
     """The calls of one term kind, added one by one, then a :class:`Block`.
 
-    ``add(x={slot: variable indices}, p={slot: numbers})`` takes every slot of the kind.
+    ``add(x={slot: variable indices}, p={slot: numbers})`` takes every slot of the kind;
+    the values are joined slot by slot when the block is made (a matrix column-major, as
+    CasADi reshapes it).
     """
 
     def __init__(self, kind: TermKind) -> None:
         self.kind = kind
-        self._x: list[np.ndarray] = []
-        self._p: list[np.ndarray] = []
+        self._x: list[Mapping] = []
+        self._p: list[Mapping] = []
+        self._x_keys, self._p_keys = set(kind.x_slots), set(kind.p_slots)
 
     def __len__(self) -> int:
         return len(self._x)
 
     def add(self, x: Mapping[str, object], p: Mapping[str, object] | None = None) -> None:
-        self._x.append(_joined(self.kind.name, "x", self.kind.x_slots, x, int))
-        self._p.append(_joined(self.kind.name, "p", self.kind.p_slots, p or {}, float))
+        p = p or {}
+        if x.keys() != self._x_keys or p.keys() != self._p_keys:
+            _refuse(self.kind, "x", self.kind.x_slots, x)
+            _refuse(self.kind, "p", self.kind.p_slots, p)
+        self._x.append(x)
+        self._p.append(p)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """(calls, nx) variable indices, (calls, np) numbers."""
-        n = len(self._x)
-        x = np.array(self._x, dtype=int).reshape(n, self.kind.term.nx)
-        p = np.array(self._p, dtype=float).reshape(n, self.kind.term.np)
+        x = _stacked(self.kind, "x", self.kind.x_slots, self._x, int)
+        p = _stacked(self.kind, "p", self.kind.p_slots, self._p, float)
         return x, p
 
     def own(self, rows: RowSpace) -> Block:
@@ -136,15 +142,29 @@ class Calls:
         return Block(self.kind.term, x, p, np.zeros((len(x), 0), dtype=int))
 
 
-def _joined(name: str, what: str, slots: Mapping[str, int], values: Mapping, dtype) -> np.ndarray:
+def _refuse(kind: TermKind, what: str, slots: Mapping[str, int], values: Mapping) -> None:
     missing = sorted(set(slots) - set(values))
     extra = sorted(set(values) - set(slots))
     if missing or extra:
-        raise SolverBuildError(f"{name}: {what} slots missing {missing}, unknown {extra}")
+        raise SolverBuildError(f"{kind.name}: {what} slots missing {missing}, unknown {extra}")
+
+
+def _stacked(
+    kind: TermKind, what: str, slots: Mapping[str, int], calls: list[Mapping], dtype
+) -> np.ndarray:
+    """(calls, sum of the slots' sizes): each slot's values, one row per call."""
+    n = len(calls)
+    if n == 0:
+        return np.zeros((0, sum(slots.values())), dtype=dtype)
     parts = []
     for slot, size in slots.items():
-        value = np.atleast_1d(np.asarray(values[slot], dtype=dtype)).ravel(order="F")
-        if value.size != size:
-            raise SolverBuildError(f"{name}: {what} slot {slot!r} has {value.size}, not {size}")
-        parts.append(value)
-    return np.concatenate(parts) if parts else np.zeros(0, dtype=dtype)
+        values = np.asarray([c[slot] for c in calls], dtype=dtype)
+        if values.ndim == 3:  # matrices, column-major as CasADi reshapes them
+            values = values.transpose(0, 2, 1)
+        values = values.reshape(n, -1)
+        if values.shape[1] != size:
+            raise SolverBuildError(
+                f"{kind.name}: {what} slot {slot!r} has {values.shape[1]} values, not {size}"
+            )
+        parts.append(values)
+    return np.concatenate(parts, axis=1) if parts else np.zeros((n, 0), dtype=dtype)

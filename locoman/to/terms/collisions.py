@@ -10,7 +10,9 @@ Geometries (what is kept out of what):
 - ``object_point_fixed_box``: a point fixed in a moving object (a carried box's corner) and
   a fixed box;
 - ``fixed_point_object_box``: a fixed point (on an obstacle's edge) and a box fixed in a
-  moving object.
+  moving object;
+- ``object_point_object_box``: a point fixed in one moving object (a carried box's corner)
+  and a box fixed in another (a trolley's chassis).
 
 Treatments (:data:`locoman.to.collision.TREATMENTS`): ``penalty`` (12), a residual
 sqrt(w) min(p, 0) smoothed; ``constraint`` (11), p >= 0; ``homotopy`` (13a),
@@ -46,6 +48,7 @@ GEOMETRIES: dict[str, tuple[dict[str, int], dict[str, int]]] = {
     "sphere_fixed_box": ({"c": 3}, {"radius": 1, "centre": 3, "yaw": 1, "half": 3}),
     "object_point_fixed_box": ({"q_o": 6}, {"point": 3, "centre": 3, "yaw": 1, "half": 3}),
     "fixed_point_object_box": ({"q_o": 6}, {"point": 3, "centre": 3, "half": 3}),
+    "object_point_object_box": ({"q_a": 6, "q_o": 6}, {"point": 3, "centre": 3, "half": 3}),
 }
 
 
@@ -64,7 +67,12 @@ def _sphere_and_box(geometry: str, x, p) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca
         origin, R = _object_frame(x["q_o"])
         return origin + R @ p["point"], 0.0, p["centre"], rot_z(p["yaw"]), p["half"]
     origin, R = _object_frame(x["q_o"])
-    return p["point"], 0.0, origin + R @ p["centre"], R, p["half"]
+    if geometry == "object_point_object_box":
+        origin_a, R_a = _object_frame(x["q_a"])
+        point = origin_a + R_a @ p["point"]
+    else:
+        point = p["point"]
+    return point, 0.0, origin + R @ p["centre"], R, p["half"]
 
 
 def _penetration(geometry: str, x, p) -> ca.SX:
@@ -84,9 +92,22 @@ def _stand_in(geometry: str, x, p) -> ca.SX:
     return sphere_ellipsoid_penetration(centre, radius, box, R, half, cfg)
 
 
+class _Between:
+    """The pose a fraction t along a step: each slot (1 - t) x_k + t x_{k+1} (a sphere's
+    centre, an object's (p, rpy), alpha)."""
+
+    def __init__(self, x, fraction: ca.SX) -> None:
+        self._x, self._t = x, fraction
+
+    def __getitem__(self, slot: str) -> ca.SX:
+        return (1.0 - self._t) * self._x[slot] + self._t * self._x[f"{slot}_next"]
+
+
 @functools.cache
-def collision_kind(geometry: str, treatment: str) -> TermKind:
-    """The term of one pair ``geometry`` under ``treatment``."""
+def collision_kind(geometry: str, treatment: str, between: bool = False) -> TermKind:
+    """The term of one pair ``geometry`` under ``treatment``; ``between``: at a fraction
+    (``p`` slot ``fraction``) along a step, every input taken at both its nodes (a hand
+    can pass through a thin post between two nodes where neither node shows it)."""
     x_slots, p_slots = (dict(s) for s in GEOMETRIES[geometry])
     if geometry != "sphere_sphere":
         p_slots |= BOX_NUMBERS
@@ -97,8 +118,12 @@ def collision_kind(geometry: str, treatment: str) -> TermKind:
             raise ValueError("spheres are their own smooth stand-in: no homotopy")
         x_slots |= {"alpha": 1}
         p_slots |= {"stand_in_margin": 1}
+    if between:
+        x_slots |= {f"{slot}_next": size for slot, size in x_slots.items()}
+        p_slots |= {"fraction": 1}
 
     def body(x, p) -> Rows:
+        x = _Between(x, p["fraction"]) if between else x
         penetration = _penetration(geometry, x, p)
         if treatment == "penalty":
             residual = ca.sqrt(p["weight"]) * penetration_residual(penetration, p["softness"])
@@ -111,7 +136,8 @@ def collision_kind(geometry: str, treatment: str) -> TermKind:
     # Sphere pairs' penalties stay Gauss-Newton with the exact Hessian too (the robot's own
     # links, active at many nodes at once: their curvature made IPOPT regularise).
     exact = geometry != "sphere_sphere"
-    return term_kind(f"{geometry}_{treatment}", x_slots, p_slots, body, exact_residuals=exact)
+    name = f"{geometry}_{treatment}" + ("_between" if between else "")
+    return term_kind(name, x_slots, p_slots, body, exact_residuals=exact)
 
 
 @functools.cache

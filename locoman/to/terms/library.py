@@ -87,7 +87,7 @@ def generic_kinds() -> list[TermKind]:
         for treatment in TREATMENTS[1:]:
             if geometry == "sphere_sphere" and treatment == "homotopy":
                 continue
-            kinds.append(collision_kind(geometry, treatment))
+            kinds += [collision_kind(geometry, treatment, between) for between in (False, True)]
     return kinds
 
 

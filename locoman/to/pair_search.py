@@ -1,0 +1,290 @@
+"""The collision pairs a solution needs, found along it (paper A's minimal set is the start).
+
+After a solve, the solution is replayed in the MuJoCo scene (:mod:`locoman.sim.audit`): every
+pair of bodies closer than a margin that the contact schedule does not let touch is mapped
+to the TO's own pairs that keep them apart (the robot link's spheres against the other
+link's spheres, the object's box nearest the contact, the fixed object's box or the floor;
+a carried object's corners against what it came close to), at the nodes around where it
+happened. Those the problem does not have yet join it, under the ``found`` kind's
+treatment, and the solve goes on from the previous primal-dual point. Since the terms are
+compiled once per robot, a round costs a new assembly (seconds) and the warm-started solve.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import mujoco
+import numpy as np
+
+from locoman.retarget.robot import ContactFrames
+from locoman.scene import g1
+from locoman.scene.rotations import rpy_to_matrix
+from locoman.sim.audit import ROBOT, Body, ClosePair, close_pairs
+from locoman.to.collision import CollisionCfg, Obstacle, box_corners
+from locoman.to.layout import ObjectModel
+from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
+from locoman.to.spheres import RobotSphere, foot_spheres, link_sphere_list
+from locoman.to.transcription import (
+    CollisionPair,
+    object_boxes,
+    object_environment_pairs,
+    obstacle_pairs,
+    sphere_box_pairs,
+)
+
+KIND = "found"
+PROMOTED = "found_hard"  # a found pair still penetrated after a round with it
+# The floor as a box under it, for a link or a carried object that reaches it.
+FLOOR_BOX = Obstacle("floor", np.array([0.0, 0.0, -0.5]), 0.0, np.array([50.0, 50.0, 0.5]))
+
+
+def robot_spheres(link: str, frames: ContactFrames) -> list[RobotSphere]:
+    """The TO's spheres of a G1 link: a foot's heel and toe, else its capsules' chain."""
+    if link in g1.FOOT_LINKS:
+        return foot_spheres(frames, g1.FOOT_LINKS.index(link))
+    return link_sphere_list(link)
+
+
+def _nearest_box(obj: ObjectModel, pose: np.ndarray, point: np.ndarray) -> int:
+    """The index of ``obj``'s collision box (:func:`object_boxes`) nearest ``point``
+    [m, world], the object at ``pose`` (p, rpy)."""
+    local = rpy_to_matrix(pose[3:6]).T @ (point - pose[:3])
+    gaps = [
+        np.linalg.norm(np.maximum(np.abs(local - centre) - half, 0.0))
+        for centre, half in object_boxes(obj)
+    ]
+    return int(np.argmin(gaps))
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    """What the search maps MuJoCo's bodies to: the TO's objects (in its order) with their
+    poses along the solution, the fixed objects' boxes, the robot's frames."""
+
+    objects: tuple[ObjectModel, ...]
+    object_q: np.ndarray  # (N, M, 6)
+    obstacles: dict[str, Obstacle]
+    frames: ContactFrames
+
+    @property
+    def names(self) -> list[str]:
+        return [obj.name for obj in self.objects]
+
+
+def _object_side(
+    k: int, j: int, other: Body, point: np.ndarray, scene: Scene
+) -> list[CollisionPair]:
+    """Pairs keeping carried object j off ``other``: its corners against a fixed box or
+    the floor (with the obstacle's edges against it), or against another object's box
+    nearest the contact, and that box's corners against j's."""
+    obj = scene.objects[j]
+    if other.kind in ("fixed", "floor"):
+        obstacle = FLOOR_BOX if other.kind == "floor" else scene.obstacles[other.name]
+        return list(object_environment_pairs(k, j, obj, (obstacle,), KIND))
+    if other.kind != "object":
+        return []
+    i = scene.names.index(other.name)
+    b = _nearest_box(scene.objects[i], scene.object_q[k, i], point)
+    centre, half = object_boxes(scene.objects[i])[b]
+    own_centre, own_half = object_boxes(obj)[_nearest_box(obj, scene.object_q[k, j], point)]
+    out = []
+    for owner, box_owner, (c, h), corners_of in (
+        (j, i, (centre, half), object_boxes(obj)[0][1]),
+        (i, j, (own_centre, own_half), half),
+    ):
+        for corner in box_corners(corners_of) if owner == j else _box_corner_points(centre, half):
+            out.append(
+                CollisionPair(
+                    k,
+                    KIND,
+                    "object_point_object_box",
+                    obj=owner,
+                    box_obj=box_owner,
+                    numbers={"point": corner, "centre": c, "half": h},
+                    label=f"{scene.names[owner]}/corner | {scene.names[box_owner]}/{b}",
+                )
+            )
+    return out
+
+
+def _box_corner_points(centre: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """(8, 3) the corners of a box (centre, half sizes) in its object's frame."""
+    signs = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    return np.asarray(centre) + signs * np.asarray(half)
+
+
+def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
+    """The TO's pairs at node k that keep the two bodies of ``close`` apart."""
+    a, b = close.a, close.b
+    if a.kind != ROBOT and b.kind == ROBOT:
+        a, b = b, a
+    if a.kind == ROBOT:
+        spheres = robot_spheres(a.name, scene.frames)
+        if b.kind == ROBOT:
+            others = robot_spheres(b.name, scene.frames)
+            return [
+                CollisionPair(
+                    k, KIND, "sphere_sphere", sphere=s, other=o, label=f"{s.name} | {o.name}"
+                )
+                for s in spheres
+                for o in others
+            ]
+        if b.kind == "object":
+            j = scene.names.index(b.name)
+            boxes = object_boxes(scene.objects[j])
+            nearest = [boxes[_nearest_box(scene.objects[j], scene.object_q[k, j], close.point)]]
+            return list(sphere_box_pairs(k, KIND, spheres, nearest, j, b.name))
+        obstacle = FLOOR_BOX if b.kind == "floor" else scene.obstacles[b.name]
+        return list(obstacle_pairs(k, KIND, spheres, obstacle))
+    if a.kind != "object" and b.kind == "object":
+        a, b = b, a
+    if a.kind == "object":
+        return _object_side(k, scene.names.index(a.name), b, close.point, scene)
+    return []
+
+
+def _key(pair: CollisionPair) -> tuple:
+    """What makes two pairs the same, whatever their kind."""
+    sides = tuple(sorted(pair.label.split(" | ")))
+    return (pair.node, round(pair.fraction, 6), pair.geometry, sides)
+
+
+def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[CollisionPair]:
+    """The pairs that keep ``close``'s bodies apart: at its node and ``around`` nodes either
+    side (the next node too, for a pose between two, and that pose itself: a hand through a
+    post between two nodes that both keep it out); never at node 0, which is given."""
+    nodes = len(scene.object_q)
+    last = close.node + around + (1 if close.fraction > 0.0 else 0)
+    out = [
+        pair
+        for k in range(max(close.node - around, 1), min(last, nodes - 1) + 1)
+        for pair in pairs_for(close, k, scene)
+    ]
+    if close.fraction > 0.0:
+        out += [
+            dataclasses.replace(pair, fraction=close.fraction)
+            for pair in pairs_for(close, close.node, scene)
+        ]
+    return out
+
+
+def found_pairs(
+    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int = 1
+) -> list[CollisionPair]:
+    """The :func:`candidates` of each of ``close`` that ``existing`` lacks, once each."""
+    known = {_key(p) for p in existing}
+    out = []
+    for c in close:
+        for pair in candidates(c, scene, around):
+            if _key(pair) not in known:
+                known.add(_key(pair))
+                out.append(pair)
+    return out
+
+
+def promoted_pairs(
+    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int = 1
+) -> list[CollisionPair]:
+    """The pairs that keep coming back: for each of ``close`` that penetrates although the
+    problem has its pairs already, those pairs again as ``PROMOTED`` (the hard (11) by
+    default), once each, where ``existing`` does not have them so yet."""
+    promoted = {_key(p) for p in existing if p.kind == PROMOTED}
+    known = {_key(p) for p in existing}
+    out = []
+    for c in close:
+        if c.distance >= 0.0:
+            continue
+        pairs = candidates(c, scene, around)
+        if any(_key(p) not in known for p in pairs):
+            continue  # not all modelled yet: found_pairs adds them first
+        for pair in pairs:
+            if _key(pair) not in promoted:
+                promoted.add(_key(pair))
+                out.append(dataclasses.replace(pair, kind=PROMOTED))
+    return out
+
+
+def trajectory_arrays(traj: Trajectory, names: list[str]) -> dict[str, np.ndarray]:
+    """What :func:`locoman.sim.audit.close_pairs` reads of a trajectory."""
+    fields = ("q", "object_q", "foot_object", "hand_object", "support_kind", "support_base")
+    return {f: getattr(traj, f) for f in fields} | {
+        "object_active": traj.object_active,
+        "object_names": np.array(names),
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class Round:
+    """One check of a solution, and the solve it led to.
+
+    Attributes:
+        close_pairs: Pairs closer than the margin the schedule does not allow.
+        deepest_m: The least distance among them [m] (negative: inside).
+        pairs_added: Pairs the problem lacked that join it.
+        iterations, solve_time_s, status: Of the warm-started solve with them (0, 0, "":
+            none, after the last check).
+    """
+
+    close_pairs: int
+    deepest_m: float
+    pairs_added: int
+    iterations: int = 0
+    solve_time_s: float = 0.0
+    status: str = ""
+
+
+def search(
+    optimizer: TrajectoryOptimizer,
+    traj: Trajectory,
+    model: mujoco.MjModel,
+    scene: Scene,
+    cfg: CollisionCfg,
+) -> tuple[Trajectory, list[Round], list[ClosePair]]:
+    """Check ``traj``, add the pairs it needs and solve on from it, at most ``cfg.rounds``
+    times. Returns the last trajectory (its iterations and solve time those of every
+    round), the rounds, and the close pairs the problem still lacks pairs for after the
+    last check (empty: the solution needs none it lacks); with ``found`` off, no rounds or
+    a failed ``traj``: ``traj``."""
+    pairs = list(optimizer.transcription.pairs)
+    rounds: list[Round] = []
+    if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
+        return traj, rounds, []  # a failed solve is no solution to check
+    names = scene.names
+    iterations, seconds = traj.iterations, traj.solve_time_s
+    while True:
+        scene = dataclasses.replace(scene, object_q=traj.object_q)
+        arrays = trajectory_arrays(traj, names)
+        close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
+        new = found_pairs(close, pairs, scene)
+        if cfg.found_hard != "off":
+            new += promoted_pairs(close, pairs, scene)
+        deepest = min((c.distance for c in close), default=0.0)
+        if not new or len(rounds) == cfg.rounds:
+            rounds.append(Round(len(close), deepest, 0))
+            unmodelled = [c for c in close if found_pairs([c], pairs, scene)]
+            total = dataclasses.replace(traj, iterations=iterations, solve_time_s=seconds)
+            return total, rounds, unmodelled
+        pairs += new
+        print(
+            f"[solve] round {len(rounds) + 1}: {len(close)} close pairs (deepest "
+            f"{deepest * 1000:.1f} mm), {len(new)} pairs added; solving on",
+            flush=True,
+        )
+        tic = time.perf_counter()
+        # From an optimum, the exact Hessian converges in a few iterations where the
+        # Gauss-Newton one, cycling near the penalties' optimum, used all 150 of its own.
+        traj = optimizer.solve(pairs=pairs, warm_start=traj, hessian="exact")
+        rounds.append(
+            Round(
+                len(close),
+                deepest,
+                len(new),
+                traj.iterations,
+                time.perf_counter() - tic,
+                traj.status,
+            )
+        )
+        iterations += traj.iterations
+        seconds += traj.solve_time_s

@@ -1,0 +1,143 @@
+"""Issue 48: the collision pairs a solution needs, found by replaying it in MuJoCo, and the
+evaluation's check between nodes. On tiny's scene (a box on a table, a side table)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from locoman.retarget.robot import contact_frames
+from locoman.scene import g1
+from locoman.scene.io import load_objects, load_scene_model
+from locoman.sim.audit import Body, ClosePair, close_pairs, unscheduled_penetrations
+from locoman.to.collision import obstacles_from_objects
+from locoman.to.layout import ObjectModel
+from locoman.to.pair_search import FLOOR_BOX, Scene, found_pairs, pairs_for, promoted_pairs
+
+NODES = 4
+BOX_ON_TABLE = np.array([0.4, 0.0, 0.72, 0.0, 0.0, 0.0])
+
+
+def _trajectory(box_q: np.ndarray, support: str = "none", q: np.ndarray | None = None) -> dict:
+    """The G1 standing still at the origin, the box at ``box_q`` (N, 6), hands off it."""
+    q = np.tile(g1.standing_q35(), (NODES, 1)) if q is None else q
+    return {
+        "q": q,
+        "object_q": box_q[:, None, :],
+        "object_names": np.array(["box"]),
+        "foot_object": np.full((NODES, 2), -1),
+        "hand_object": np.full((NODES, 2), -1),
+        "support_kind": np.full((NODES, 1), support),
+        "support_base": np.full((NODES, 1), -1),
+        "object_active": np.ones((NODES, 1), bool),
+    }
+
+
+@pytest.fixture(scope="module")
+def scene(tiny_scene):
+    return load_scene_model(tiny_scene), load_objects(tiny_scene)
+
+
+def test_a_carried_box_through_the_table_is_found_a_resting_one_is_not(scene):
+    model, _ = scene
+    sunk = np.tile(BOX_ON_TABLE, (NODES, 1))
+    sunk[2, 2] -= 0.05  # node 2: 5 cm into the table top
+    carried = close_pairs(model, _trajectory(sunk), 0.005, 0)
+    pairs = {(c.node, c.a.name, c.b.name) for c in carried} | {
+        (c.node, c.b.name, c.a.name) for c in carried
+    }
+    assert (2, "box", "table") in pairs
+    assert min(c.distance for c in carried if c.node == 2) < -0.04
+    # Resting on the table (its support), the same pose is the schedule's contact.
+    resting = close_pairs(model, _trajectory(sunk, "surface"), 0.005, 0)
+    assert not [c for c in resting if "box" in (c.a.name, c.b.name)]
+
+
+def test_a_pose_between_two_nodes_is_checked(scene):
+    """The box passes through the table's top between nodes 1 and 2 (over it at 1, under
+    it at 2): no node shows it, a pose between them does, and so does the evaluation."""
+    model, _ = scene
+    path = np.tile(BOX_ON_TABLE, (NODES, 1))
+    path[:, 2] = [0.9, 0.9, 0.45, 0.45]  # the top is 0.72 m up, 3 cm thick
+    path[:, 0] = [0.55, 0.55, 0.55, 0.55]
+    nodes_only = close_pairs(model, _trajectory(path), 0.0, 0)
+    assert not [c for c in nodes_only if "table" in (c.a.name, c.b.name)]
+    between = close_pairs(model, _trajectory(path), 0.0, 3)
+    assert {c.node for c in between if "table" in (c.a.name, c.b.name)} == {1}
+    deepest, by_body = unscheduled_penetrations(model, _trajectory(path), 3)
+    assert deepest > 0.01 and by_body["box"].node == 1 and 0.0 < by_body["box"].fraction < 1.0
+
+
+def test_the_arm_in_the_torso_is_found_and_mapped_to_sphere_pairs(scene):
+    model, objects = scene
+    q = np.tile(g1.standing_q35(), (NODES, 1))
+    q[1:, 6 + g1.G1_JOINT_NAMES.index("left_shoulder_roll_joint")] = -0.6
+    close = close_pairs(
+        model, _trajectory(np.tile(BOX_ON_TABLE, (NODES, 1)), "surface", q), 0.005, 0
+    )
+    self_pairs = [c for c in close if c.a.kind == c.b.kind == "robot"]
+    assert self_pairs and all(c.node >= 1 for c in self_pairs)  # node 0 is given
+    box = ObjectModel.from_spec("box", objects["box"])
+    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
+    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+    pair = pairs_for(self_pairs[0], 2, scene_)
+    assert pair and {p.geometry for p in pair} == {"sphere_sphere"}
+    assert all(p.kind == "found" and p.node == 2 for p in pair)
+
+
+def _close(a: Body, b: Body, node: int = 2, fraction: float = 0.0) -> ClosePair:
+    return ClosePair(node, fraction, a, b, -0.01, np.array([0.4, 0.0, 0.8]))
+
+
+def test_found_pairs_cover_the_nodes_around_once_and_never_the_first(scene):
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
+    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+    knee = Body("robot", "left_knee_link", "left_knee_link#7")
+    table = Body("fixed", "table", "table/top")
+    new = found_pairs([_close(knee, table)], [], scene_)
+    assert {p.node for p in new} == {1, 2, 3}
+    assert {p.geometry for p in new} == {"sphere_fixed_box"}
+    assert len(new) == 3 * 6  # six knee spheres at each node
+    assert found_pairs([_close(knee, table)], new, scene_) == []  # already there
+    # Between nodes 0 and 1: at nodes 1 and 2 (node 0 is given), and where along the step.
+    first = found_pairs([_close(knee, table, node=0, fraction=0.25)], [], scene_)
+    assert {p.node for p in first if p.fraction == 0.0} == {1, 2}
+    assert {(p.node, p.fraction) for p in first if p.fraction} == {(0, 0.25)}
+    assert len(first) == 3 * 6
+    floor = found_pairs([_close(knee, Body("floor", "floor", "floor"))], [], scene_)
+    assert all(p.numbers["centre"][2] == FLOOR_BOX.centre[2] for p in floor)
+
+
+def test_an_object_against_another_keeps_both_boxes_corners_out(scene):
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    other = ObjectModel.from_spec("crate", objects["box"] | {"kind": "box"})
+    poses = np.tile(
+        np.stack([BOX_ON_TABLE, BOX_ON_TABLE + np.array([0.0, 0.0, 0.15, 0, 0, 0])]), (NODES, 1, 1)
+    )
+    scene_ = Scene((box, other), poses, {}, contact_frames())
+    close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
+    pairs = pairs_for(close, 2, scene_)
+    assert {p.geometry for p in pairs} == {"object_point_object_box"}
+    assert {(p.obj, p.box_obj) for p in pairs} == {(0, 1), (1, 0)}
+    assert len(pairs) == 16
+
+
+def test_a_found_pair_still_penetrated_comes_back_hard(scene):
+    """The pairs that keep coming back (issue 48): a penetration whose pairs the problem has
+    already returns them as ``found_hard``, once; one within the margin only does not."""
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
+    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+    knee = Body("robot", "left_knee_link", "left_knee_link#7")
+    close = _close(knee, Body("fixed", "table", "table/top"))
+    assert promoted_pairs([close], [], scene_) == []  # not modelled yet: found first
+    found = found_pairs([close], [], scene_)
+    hard = promoted_pairs([close], found, scene_)
+    assert len(hard) == len(found) and {p.kind for p in hard} == {"found_hard"}
+    assert promoted_pairs([close], found + hard, scene_) == []
+    near = ClosePair(2, 0.0, close.a, close.b, 0.003, close.point)  # within the margin
+    assert promoted_pairs([near], found, scene_) == []
