@@ -9,7 +9,7 @@ export PYOPENGL_PLATFORM ?= egl
 # Stages call `python`: make it the project environment's.
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: setup run test lint params bench results clean-venv
+.PHONY: setup run test lint params bench results gallery clean-venv
 
 setup: $(STAMP)
 
@@ -44,6 +44,10 @@ test: setup $(LEARNED)
 # The headline numbers per scenario, one table (from the stages' metrics.json).
 results: setup
 	$(BIN)/python -m locoman.results
+
+# The README's pictures (docs/gallery/) from the pipeline's outputs: after `make run`.
+gallery: setup
+	$(BIN)/python -m locoman.gallery
 
 lint: setup
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .

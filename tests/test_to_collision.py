@@ -345,16 +345,19 @@ def test_the_hard_constraint_keeps_a_body_out_where_the_penalty_lets_it_in(treat
 
 
 def test_a_pair_between_two_nodes_is_the_pair_at_its_fraction_along_the_step():
-    """Between two nodes a hand can pass through a thin post that both nodes keep it out
-    of: a term between nodes is the term at (1 - t) x_k + t x_{k+1}."""
-    box = {"radius": 0.05, "centre": [0.0, 0.0, 0.5], "yaw": 0.3, "half": [0.02, 0.02, 0.5]}
-    box |= {"margin": 0.01, "smoothing": 0.004, "length": 0.1}
-    p = np.concatenate([np.atleast_1d(v) for v in box.values()])
-    at_node = collision_kind("sphere_fixed_box", "constraint").term.function
-    between = collision_kind("sphere_fixed_box", "constraint", between=True).term.function
-    before, after = np.array([-0.2, 0.01, 0.6]), np.array([0.2, -0.01, 0.6])
+    """Between two nodes a carried box's corner can pass through a thin post that both
+    nodes keep it out of: a term between nodes takes an object's pose at (1 - t) x_k +
+    t x_{k+1} (a robot sphere's centre comes at the configuration there, as given)."""
+    post = {"point": [0.1, 0.0, 0.0], "centre": [0.0, 0.0, 0.5], "yaw": 0.3}
+    post |= {"half": [0.02, 0.02, 0.5], "margin": 0.01, "smoothing": 0.004, "length": 0.1}
+    p = np.concatenate([np.atleast_1d(v) for v in post.values()])
+    at_node = collision_kind("object_point_fixed_box", "constraint").term.function
+    between = collision_kind("object_point_fixed_box", "constraint", between=True).term.function
+    before, after = np.array([-0.3, 0.01, 0.6, 0, 0, 0]), np.array([0.1, -0.01, 0.6, 0, 0, 0])
     assert float(at_node(before, p)[0]) > 0.0 and float(at_node(after, p)[0]) > 0.0
     for t in (0.25, 0.5):
         value = float(between(np.r_[before, after], np.r_[p, t])[0])
         assert value == pytest.approx(float(at_node((1 - t) * before + t * after, p)[0]))
     assert float(between(np.r_[before, after], np.r_[p, 0.5])[0]) < 0.0  # through the post
+    sphere = collision_kind("sphere_fixed_box", "constraint", between=True)
+    assert set(sphere.x_slots) == {"c"}  # the robot's sphere comes at the fraction

@@ -426,3 +426,38 @@ def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     free_basket = pairs(0, holding=False)
     assert len(free_basket) == 5 * (3 + forearm) and not any(p.touching for p in free_basket)
     assert len(pairs(1, holding=False)) == 3  # a solid box: the palm, one box
+
+
+def test_a_pair_between_two_nodes_sees_the_spheres_at_the_configuration_there():
+    """Issue 48: the replay between two nodes is linear in q; a pair there takes the link's
+    spheres where that configuration puts them (virtual variables of their own), not the
+    chord of their centres at the two nodes."""
+    from locoman.to.spheres import link_sphere_list
+    from locoman.to.transcription import CollisionPair
+
+    knee = link_sphere_list("left_knee_link")[2]
+    table = {"centre": np.array([0.6, 0.0, 0.36]), "yaw": 0.0, "half": np.array([0.3, 0.4, 0.36])}
+    pair = CollisionPair(0, "found", "sphere_fixed_box", sphere=knee, numbers=table, fraction=0.5)
+    mode = NodeMode((True, True), (None, None), (ObjectMode(False, Surface()),))
+    tr = transcribe(
+        [mode, mode],
+        np.zeros((NodeLayout.of(1).n_params, 2)),
+        Numbers(CostWeights(), ContactCfg(), NO_SELF, (BOX,), ()),
+        g1_terms(),
+        [pair],
+    )
+    q0, q1 = g1.standing_q35(), g1.standing_q35()
+    q1[6 + g1.G1_JOINT_NAMES.index("left_knee_joint")] += 1.2
+    q1[0] += 0.3
+    z = tr.extended(_point(tr, [{"q": q0}, {"q": q1}]))
+    (between,) = [b for b in tr.blocks if b.defines and b.term.name.startswith("spheres_between")]
+    centres = z[between.x[0, -between.term.ng :]].reshape(-1, 3)
+    spheres = g1_terms().link_spheres["left_knee_link"].term.function
+    n_c = between.term.ng
+    expected = -np.asarray(spheres(np.r_[0.5 * (q0 + q1), np.zeros(n_c)], [])[0]).reshape(-1, 3)
+    np.testing.assert_allclose(centres, expected, atol=1e-12)
+    chord = 0.5 * (
+        -np.asarray(spheres(np.r_[q0, np.zeros(n_c)], [])[0]).reshape(-1, 3)
+        - np.asarray(spheres(np.r_[q1, np.zeros(n_c)], [])[0]).reshape(-1, 3)
+    )
+    assert np.abs(centres - chord).max() > 0.005  # the arc, not the chord

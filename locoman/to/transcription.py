@@ -128,6 +128,8 @@ class RobotTerms:
     kinematics: TermKind
     link_spheres: dict[str, TermKind]
     link_points: dict[str, TermKind]
+    link_spheres_between: dict[str, TermKind]
+    link_points_between: dict[str, TermKind]
     mass: float  # [kg]
     frames: ContactFrames
 
@@ -156,16 +158,12 @@ class Transcription:
     pairs: tuple[CollisionPair, ...]
     blocks: tuple[Block, ...]
     rows: RowSpace
+    n_y: int
 
     @property
     def n_x(self) -> int:
         """The NLP's variables."""
         return self.nodes * self.layout.width
-
-    @property
-    def n_y(self) -> int:
-        """Its virtual variables: per node the robot's kinematics and sphere centres."""
-        return self.nodes * (N_KIN + 3 * len(self.spheres))
 
     def rows_of(self, term: str) -> np.ndarray:
         """(calls, ng) the rows the calls of ``term`` own (they may have others' shares)."""
@@ -206,6 +204,10 @@ class _Index:
         self.layout, self.spheres, self.width, self.nodes = layout, spheres, layout.width, nodes
         self.n_x = nodes * layout.width
         self.virtual_width = N_KIN + 3 * len(spheres)
+        # Sphere centres between two nodes: (node, fraction, link or point name) -> their
+        # virtual indices, after every node's, handed out as the pairs ask for them.
+        self.between: dict[tuple[int, float, str], np.ndarray] = {}
+        self.n_y = nodes * self.virtual_width
 
     def var(self, k: int, name: str) -> np.ndarray:
         s = self.layout.variables[name]
@@ -240,6 +242,21 @@ class _Index:
 
     def link_spheres(self, k: int, link: str) -> np.ndarray:
         return self.virtual(k) + N_KIN + self.spheres.link_slots(link)
+
+    def sphere_between(self, k: int, fraction: float, sphere: RobotSphere) -> np.ndarray:
+        """(3,) the virtual centre of ``sphere`` at the configuration ``fraction`` along
+        the step from node k (a capsule's link's spheres come together)."""
+        if sphere.index is None:
+            key = (k, fraction, sphere.name)
+            count = 1
+        else:
+            key = (k, fraction, sphere.link)
+            count = len(link_sphere_list(sphere.link))
+        if key not in self.between:
+            self.between[key] = self.n_y + np.arange(3 * count)
+            self.n_y += 3 * count
+        start = 0 if sphere.index is None else 3 * sphere.index
+        return self.between[key][start : start + 3]
 
 
 def _prehensile(contact: ContactCfg, obj: ObjectModel) -> bool:
@@ -526,8 +543,9 @@ def transcribe(
     _wrench_rows(b, at, modes, numbers, robot, P, par)
     _costs(b, at, modes, numbers, robot, P, par, opar)
     _collisions(b, at, pairs, numbers.collision, numbers.weights)
+    _between(b, at, robot, spheres)
     blocks = b.close()
-    return Transcription(layout, n, spheres, tuple(pairs), tuple(blocks), b.rows)
+    return Transcription(layout, n, spheres, tuple(pairs), tuple(blocks), b.rows, at.n_y)
 
 
 def _kinematics(b: _Builder, at: _Index, robot: RobotTerms, n: int) -> None:
@@ -811,11 +829,19 @@ def _costs(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, op
             b.own(object_pose_kind()).add({"q": at.obj(k, j, "q")}, p)
 
 
-def _pair_inputs(at: _Index, k: int, pair: CollisionPair, cfg: CollisionCfg) -> dict:
-    """The variables of one pair at node k (its spheres' centres, its objects' poses)."""
+def _pair_inputs(at: _Index, k: int, pair: CollisionPair, robot: bool = True) -> dict:
+    """The variables of one pair at node k: its objects' poses and, with ``robot``, its
+    spheres' centres (for a pair between two nodes, where the configuration there puts
+    them)."""
+
+    def centre(sphere: RobotSphere) -> np.ndarray:
+        if pair.fraction > 0.0:
+            return at.sphere_between(pair.node, pair.fraction, sphere)
+        return at.sphere(k, sphere)
+
     if pair.geometry == "sphere_sphere":
-        return {"a": at.sphere(k, pair.sphere), "b": at.sphere(k, pair.other)}
-    x = {"c": at.sphere(k, pair.sphere)} if pair.sphere is not None else {}
+        return {"a": centre(pair.sphere), "b": centre(pair.other)} if robot else {}
+    x = {"c": centre(pair.sphere)} if pair.sphere is not None and robot else {}
     if pair.box_obj is not None:
         return x | {"q_a": at.obj(k, pair.obj, "q"), "q_o": at.obj(k, pair.box_obj, "q")}
     if pair.obj is not None:
@@ -831,7 +857,7 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
         treatment = getattr(cfg, pair.kind)
         kind = collision_kind(pair.geometry, treatment, pair.fraction > 0.0)
         k = pair.node
-        x = _pair_inputs(at, k, pair, cfg)
+        x = _pair_inputs(at, k, pair)
         if pair.geometry == "sphere_sphere":
             p = {"radius": pair.sphere.radius + pair.other.radius + cfg.margin_m}
         else:
@@ -848,11 +874,26 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
             homotopy_nodes.add(k)
         if pair.fraction > 0.0:
             p["fraction"] = pair.fraction
-            x_next = _pair_inputs(at, k + 1, pair, cfg)
+            x_next = _pair_inputs(at, k + 1, pair, robot=False)
             if treatment == "homotopy":
                 x_next |= {"alpha": at.var(k + 1, "alpha")}
                 homotopy_nodes.add(k + 1)
-            x |= {f"{slot}_next": value for slot, value in x_next.items()}
+            x |= {f"{s}_next": v for s, v in x_next.items()}
         b.own(kind).add(x, p)
     for k in sorted(homotopy_nodes):
         b.own(homotopy_weight_kind()).add({"alpha": at.var(k, "alpha")}, {"weight": w.homotopy})
+
+
+def _between(b: _Builder, at: _Index, robot: RobotTerms, spheres: SphereSet) -> None:
+    """The sphere centres the pairs between two nodes asked for: virtual variables at the
+    configuration linear in q along the step."""
+    for (k, fraction, name), centres in at.between.items():
+        q = {"q": at.var(k, "q"), "q_next": at.var(k + 1, "q"), "c": centres}
+        if name in robot.link_spheres_between:
+            b.calls(robot.link_spheres_between[name]).add(q, {"fraction": fraction})
+            continue
+        point = next(s for s in spheres.points if s.name == name)
+        kind = robot.link_points_between[point.link]
+        b.calls(kind).add(q, {"offset": point.offset, "fraction": fraction})
+    for kind in [*robot.link_spheres_between.values(), *robot.link_points_between.values()]:
+        b.define(kind)

@@ -92,14 +92,23 @@ def _stand_in(geometry: str, x, p) -> ca.SX:
     return sphere_ellipsoid_penetration(centre, radius, box, R, half, cfg)
 
 
+# The inputs that are a robot sphere's centre: between two nodes the transcription hands
+# them at the configuration there (virtual variables of their own); the objects' poses and
+# alpha are linear along the step.
+ROBOT_SLOTS = ("a", "b", "c")
+
+
 class _Between:
-    """The pose a fraction t along a step: each slot (1 - t) x_k + t x_{k+1} (a sphere's
-    centre, an object's (p, rpy), alpha)."""
+    """The inputs a fraction t along a step: a robot sphere's centre as given, every other
+    slot (1 - t) x_k + t x_{k+1} (an object's (p, rpy), alpha), as the evaluation's replay
+    between two nodes has them."""
 
     def __init__(self, x, fraction: ca.SX) -> None:
         self._x, self._t = x, fraction
 
     def __getitem__(self, slot: str) -> ca.SX:
+        if slot in ROBOT_SLOTS:
+            return self._x[slot]
         return (1.0 - self._t) * self._x[slot] + self._t * self._x[f"{slot}_next"]
 
 
@@ -119,7 +128,7 @@ def collision_kind(geometry: str, treatment: str, between: bool = False) -> Term
         x_slots |= {"alpha": 1}
         p_slots |= {"stand_in_margin": 1}
     if between:
-        x_slots |= {f"{slot}_next": size for slot, size in x_slots.items()}
+        x_slots |= {f"{s}_next": size for s, size in x_slots.items() if s not in ROBOT_SLOTS}
         p_slots |= {"fraction": 1}
 
     def body(x, p) -> Rows:

@@ -94,3 +94,41 @@ def link_point_kind(kin: SymbolicKinematics, link: str) -> TermKind:
         return Rows(equalities=[x["c"] - (p_link + ca.reshape(R_link, 3, 3) @ par["offset"])])
 
     return term_kind(f"point_{link}", {"q": NQ, "c": 3}, {"offset": 3}, body, lifts=True)
+
+
+def _between(q: ca.SX, q_next: ca.SX, fraction: ca.SX) -> ca.SX:
+    """The configuration a fraction t along a step, linear in q (as the evaluation's
+    replay between two nodes has it)."""
+    return q + fraction * (q_next - q)
+
+
+def link_spheres_between_kind(kin: SymbolicKinematics, link: str) -> TermKind:
+    """:func:`link_spheres_kind` at the configuration a fraction along a step (inputs q at
+    both nodes, ``p`` slot ``fraction``): where a collision pair between two nodes puts the
+    link's spheres."""
+    R, p = kin.frame_pose(link)
+    spheres = link_spheres(link)
+    centres = ca.Function(
+        f"{link}_centres", [kin.q], [ca.vertcat(*[p + R @ ca.DM(s.centre) for s in spheres])]
+    )
+
+    def body(x, par) -> Rows:
+        q = _between(x["q"], x["q_next"], par["fraction"])
+        return Rows(equalities=[x["c"] - centres(q)])
+
+    slots = {"q": NQ, "q_next": NQ, "c": 3 * len(spheres)}
+    return term_kind(f"spheres_between_{link}", slots, {"fraction": 1}, body, lifts=True)
+
+
+def link_point_between_kind(kin: SymbolicKinematics, link: str) -> TermKind:
+    """:func:`link_point_kind` at the configuration a fraction along a step."""
+    R, p = kin.frame_pose(link)
+    pose = ca.Function(f"{link}_pose", [kin.q], [p, ca.vec(R)])
+
+    def body(x, par) -> Rows:
+        p_link, R_link = pose(_between(x["q"], x["q_next"], par["fraction"]))
+        return Rows(equalities=[x["c"] - (p_link + ca.reshape(R_link, 3, 3) @ par["offset"])])
+
+    slots = {"q": NQ, "q_next": NQ, "c": 3}
+    p_slots = {"offset": 3, "fraction": 1}
+    return term_kind(f"point_between_{link}", slots, p_slots, body, lifts=True)

@@ -40,7 +40,13 @@ from locoman.to.terms.dynamics import (
     same_object_wrench_kind,
     wrench_kind,
 )
-from locoman.to.terms.kinematics import kinematics_kind, link_point_kind, link_spheres_kind
+from locoman.to.terms.kinematics import (
+    kinematics_kind,
+    link_point_between_kind,
+    link_point_kind,
+    link_spheres_between_kind,
+    link_spheres_kind,
+)
 from locoman.to.terms.supports import support_contact_kind, support_wrench_kind
 from locoman.to.transcription import RobotTerms
 
@@ -64,10 +70,17 @@ def g1_terms() -> RobotTerms:
     model = g1.g1_pinocchio_model()
     kin = SymbolicKinematics(model)
     frames = contact_frames()
-    spheres = {link: link_spheres_kind(kin, link) for link in collision_links()}
+    links = collision_links()
     pointed = (*g1.HAND_LINKS, *g1.FOOT_LINKS, *(link for link, _, _ in BODY_POINTS))
-    points = {link: link_point_kind(kin, link) for link in pointed}
-    return RobotTerms(kinematics_kind(kin, frames), spheres, points, kin.mass, frames)
+    return RobotTerms(
+        kinematics_kind(kin, frames),
+        {link: link_spheres_kind(kin, link) for link in links},
+        {link: link_point_kind(kin, link) for link in pointed},
+        {link: link_spheres_between_kind(kin, link) for link in links},
+        {link: link_point_between_kind(kin, link) for link in pointed},
+        kin.mass,
+        frames,
+    )
 
 
 def generic_kinds() -> list[TermKind]:
@@ -93,5 +106,11 @@ def generic_kinds() -> list[TermKind]:
 
 def all_kinds(robot: RobotTerms) -> list[TermKind]:
     """The robot's kinds and the generic ones: the compiled set."""
-    robot_kinds = [robot.kinematics, *robot.link_spheres.values(), *robot.link_points.values()]
+    robot_kinds = [
+        robot.kinematics,
+        *robot.link_spheres.values(),
+        *robot.link_points.values(),
+        *robot.link_spheres_between.values(),
+        *robot.link_points_between.values(),
+    ]
     return [*robot_kinds, *generic_kinds()]
