@@ -449,6 +449,8 @@ def test_a_pair_between_two_nodes_sees_the_spheres_at_the_configuration_there():
     q0, q1 = g1.standing_q35(), g1.standing_q35()
     q1[6 + g1.G1_JOINT_NAMES.index("left_knee_joint")] += 1.2
     q1[0] += 0.3
+    defined = np.concatenate([b.x[:, -b.term.ng :].ravel() for b in tr.blocks if b.defines])
+    assert np.array_equal(np.sort(defined), tr.n_x + np.arange(tr.n_y))  # each once
     z = tr.extended(_point(tr, [{"q": q0}, {"q": q1}]))
     (between,) = [b for b in tr.blocks if b.defines and b.term.name.startswith("spheres_between")]
     centres = z[between.x[0, -between.term.ng :]].reshape(-1, 3)

@@ -253,7 +253,7 @@ class _Index:
             key = (k, fraction, sphere.link)
             count = len(link_sphere_list(sphere.link))
         if key not in self.between:
-            self.between[key] = self.n_y + np.arange(3 * count)
+            self.between[key] = self.n_x + self.n_y + np.arange(3 * count)
             self.n_y += 3 * count
         start = 0 if sphere.index is None else 3 * sphere.index
         return self.between[key][start : start + 3]
