@@ -110,19 +110,24 @@ def test_found_pairs_cover_the_nodes_around_once_and_never_the_first(scene):
     assert all(p.numbers["centre"][2] == FLOOR_BOX.centre[2] for p in floor)
 
 
-def test_an_object_against_another_keeps_both_boxes_corners_out(scene):
+def test_an_object_against_another_keeps_its_corners_and_the_others_rim_out(scene):
+    """A carried box into another object (S2's box into the trolley's platform): its
+    corners against the other's box, and points along the other box's edges against it, so
+    that the rim cannot cut its bottom between its corners; each pair once."""
     _, objects = scene
     box = ObjectModel.from_spec("box", objects["box"])
     other = ObjectModel.from_spec("crate", objects["box"] | {"kind": "box"})
-    poses = np.tile(
-        np.stack([BOX_ON_TABLE, BOX_ON_TABLE + np.array([0.0, 0.0, 0.15, 0, 0, 0])]), (NODES, 1, 1)
-    )
+    lifted = BOX_ON_TABLE + np.array([0.0, 0.0, 0.15, 0, 0, 0])
+    poses = np.tile(np.stack([BOX_ON_TABLE, lifted]), (NODES, 1, 1))
     scene_ = Scene((box, other), poses, {}, contact_frames())
     close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
     pairs = pairs_for(close, 2, scene_)
     assert {p.geometry for p in pairs} == {"object_point_object_box"}
-    assert {(p.obj, p.box_obj) for p in pairs} == {(0, 1), (1, 0)}
-    assert len(pairs) == 16
+    corners = [p for p in pairs if (p.obj, p.box_obj) == (0, 1)]
+    rim = [p for p in pairs if (p.obj, p.box_obj) == (1, 0)]
+    assert len(corners) == 8 and len(rim) > 8
+    assert len({p.label for p in pairs}) == len(pairs)
+    assert len(found_pairs([close], [], scene_)) == 3 * len(pairs)
 
 
 def test_a_found_pair_still_penetrated_comes_back_hard(scene):
@@ -141,3 +146,22 @@ def test_a_found_pair_still_penetrated_comes_back_hard(scene):
     assert promoted_pairs([close], found + hard, scene_) == []
     near = ClosePair(2, 0.0, close.a, close.b, 0.003, close.point)  # within the margin
     assert promoted_pairs([near], found, scene_) == []
+
+
+def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):
+    """A carried box that grazed the crate it is set on a node later: no pair holds it off
+    the crate where it rests on it."""
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    other = ObjectModel.from_spec("crate", objects["box"] | {"kind": "box"})
+    poses = np.tile(np.stack([BOX_ON_TABLE, BOX_ON_TABLE]), (NODES, 1, 1))
+    schedule = _trajectory(poses[:, 0]) | {
+        "object_q": poses,
+        "object_names": np.array(["box", "crate"]),
+        "support_kind": np.array([["none", "surface"]] * 3 + [["on_object", "surface"]]),
+        "support_base": np.array([[-1, -1]] * 3 + [[1, -1]]),
+        "object_active": np.ones((NODES, 2), bool),
+    }
+    scene_ = Scene((box, other), poses, {}, contact_frames(), schedule)
+    close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
+    assert {p.node for p in found_pairs([close], [], scene_)} == {1, 2}  # not 3

@@ -80,7 +80,7 @@ def _body(model: mujoco.MjModel, geom: int, movable: list[str]) -> Body:
     return Body(ROBOT, link, name or f"{link}#{geom}")
 
 
-def _allowed_at(traj: dict[str, np.ndarray], k: int, a: Body, b: Body, names: list[str]) -> bool:
+def allowed_at(traj: dict[str, np.ndarray], k: int, a: Body, b: Body, names: list[str]) -> bool:
     """The schedule lets ``a`` and ``b`` touch at node k."""
     for first, second in ((a, b), (b, a)):
         if first.kind == ROBOT and first.name in g1.FOOT_LINKS:
@@ -108,7 +108,7 @@ def allowed(traj: dict[str, np.ndarray], pair: ClosePair, names: list[str]) -> b
     """The schedule lets the pair touch at its node, or, between two nodes, at either."""
     k = pair.node
     nodes = [k] if pair.fraction == 0.0 else [k, k + 1]
-    return any(_allowed_at(traj, node, pair.a, pair.b, names) for node in nodes)
+    return any(allowed_at(traj, node, pair.a, pair.b, names) for node in nodes)
 
 
 def close_pairs(

@@ -21,8 +21,8 @@ import numpy as np
 from locoman.retarget.robot import ContactFrames
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
-from locoman.sim.audit import ROBOT, Body, ClosePair, close_pairs
-from locoman.to.collision import CollisionCfg, Obstacle, box_corners
+from locoman.sim.audit import ROBOT, Body, ClosePair, allowed_at, close_pairs
+from locoman.to.collision import CollisionCfg, Obstacle, edge_point_counts, edge_points
 from locoman.to.layout import ObjectModel
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
 from locoman.to.spheres import RobotSphere, foot_spheres, link_sphere_list
@@ -61,12 +61,21 @@ def _nearest_box(obj: ObjectModel, pose: np.ndarray, point: np.ndarray) -> int:
 @dataclasses.dataclass(frozen=True)
 class Scene:
     """What the search maps MuJoCo's bodies to: the TO's objects (in its order) with their
-    poses along the solution, the fixed objects' boxes, the robot's frames."""
+    poses along the solution, the fixed objects' boxes, the robot's frames, and the
+    solution's contact schedule (:func:`trajectory_arrays`; None: touching allowed
+    nowhere)."""
 
     objects: tuple[ObjectModel, ...]
     object_q: np.ndarray  # (N, M, 6)
     obstacles: dict[str, Obstacle]
     frames: ContactFrames
+    schedule: dict[str, np.ndarray] | None = None
+
+    def allowed(self, k: int, close: ClosePair) -> bool:
+        """The schedule lets ``close``'s bodies touch at node k."""
+        return self.schedule is not None and allowed_at(
+            self.schedule, k, close.a, close.b, self.names
+        )
 
     @property
     def names(self) -> list[str]:
@@ -77,8 +86,10 @@ def _object_side(
     k: int, j: int, other: Body, point: np.ndarray, scene: Scene
 ) -> list[CollisionPair]:
     """Pairs keeping carried object j off ``other``: its corners against a fixed box or
-    the floor (with the obstacle's edges against it), or against another object's box
-    nearest the contact, and that box's corners against j's."""
+    the floor (with the obstacle's edges against it); against another object, the corners
+    of j's box nearest the contact against that object's nearest box, and points along
+    that box's vertical and top edges (spaced by j's smallest half size) against j's box,
+    so that a platform's rim cannot cut into j's bottom between its corners."""
     obj = scene.objects[j]
     if other.kind in ("fixed", "floor"):
         obstacle = FLOOR_BOX if other.kind == "floor" else scene.obstacles[other.name]
@@ -86,33 +97,42 @@ def _object_side(
     if other.kind != "object":
         return []
     i = scene.names.index(other.name)
+    a = _nearest_box(obj, scene.object_q[k, j], point)
     b = _nearest_box(scene.objects[i], scene.object_q[k, i], point)
-    centre, half = object_boxes(scene.objects[i])[b]
-    own_centre, own_half = object_boxes(obj)[_nearest_box(obj, scene.object_q[k, j], point)]
-    out = []
-    for owner, box_owner, (c, h), corners_of in (
-        (j, i, (centre, half), object_boxes(obj)[0][1]),
-        (i, j, (own_centre, own_half), half),
-    ):
-        for corner in box_corners(corners_of) if owner == j else _box_corner_points(centre, half):
-            out.append(
-                CollisionPair(
-                    k,
-                    KIND,
-                    "object_point_object_box",
-                    obj=owner,
-                    box_obj=box_owner,
-                    numbers={"point": corner, "centre": c, "half": h},
-                    label=f"{scene.names[owner]}/corner | {scene.names[box_owner]}/{b}",
-                )
-            )
+    (own_centre, own_half), (centre, half) = object_boxes(obj)[a], object_boxes(scene.objects[i])[b]
+    corners = own_centre + _CORNERS * own_half
+    rim = Obstacle("rim", centre, 0.0, half)
+    spacing = float(min(own_half))
+    edges = edge_points(rim, edge_point_counts(half, spacing))
+    names = scene.names
+    out = [
+        CollisionPair(
+            k,
+            KIND,
+            "object_point_object_box",
+            obj=j,
+            box_obj=i,
+            numbers={"point": c, "centre": centre, "half": half},
+            label=f"{names[j]}/{a}/corner{n} | {names[i]}/{b}",
+        )
+        for n, c in enumerate(corners)
+    ]
+    out += [
+        CollisionPair(
+            k,
+            KIND,
+            "object_point_object_box",
+            obj=i,
+            box_obj=j,
+            numbers={"point": e, "centre": own_centre, "half": own_half},
+            label=f"{names[i]}/{b}/edge{n} | {names[j]}/{a}",
+        )
+        for n, e in enumerate(edges)
+    ]
     return out
 
 
-def _box_corner_points(centre: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """(8, 3) the corners of a box (centre, half sizes) in its object's frame."""
-    signs = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    return np.asarray(centre) + signs * np.asarray(half)
+_CORNERS = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
 
 
 def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
@@ -157,15 +177,19 @@ def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[Collisio
     post between two nodes that both keep it out); never at node 0, which is given."""
     nodes = len(scene.object_q)
     last = close.node + around + (1 if close.fraction > 0.0 else 0)
+    # Not where the schedule lets them touch (a box set down on the platform it grazed
+    # while carried): there the pair would hold it off its support.
     out = [
         pair
         for k in range(max(close.node - around, 1), min(last, nodes - 1) + 1)
+        if not scene.allowed(k, close)
         for pair in pairs_for(close, k, scene)
     ]
-    if close.fraction > 0.0:
+    k = close.node
+    if close.fraction > 0.0 and not (scene.allowed(k, close) or scene.allowed(k + 1, close)):
         out += [
             dataclasses.replace(pair, fraction=close.fraction)
-            for pair in pairs_for(close, close.node, scene)
+            for pair in pairs_for(close, k, scene)
         ]
     return out
 
@@ -254,8 +278,8 @@ def search(
     names = scene.names
     iterations, seconds = traj.iterations, traj.solve_time_s
     while True:
-        scene = dataclasses.replace(scene, object_q=traj.object_q)
         arrays = trajectory_arrays(traj, names)
+        scene = dataclasses.replace(scene, object_q=traj.object_q, schedule=arrays)
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
         new = found_pairs(close, pairs, scene)
         if cfg.found_hard != "off":
