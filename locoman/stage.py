@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import inspect
 import json
 import os
 import re
 import shutil
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
@@ -50,11 +52,44 @@ def stage_dir(scenario: str, stage: str) -> Path:
         path.mkdir(parents=True, exist_ok=True)
         return path
     if path not in _staging:
-        staging = path.parent / f".{stage}.staging"
-        shutil.rmtree(staging, ignore_errors=True)  # a killed run's leftovers
+        _remove_stale_staging(path.parent, stage)
+        # A folder of this run's own: two runs of a stage at once cannot mix their files.
+        staging = path.parent / f".{stage}.staging.{os.getpid()}"
+        shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)
         _staging[path] = staging
     return _staging[path]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _remove_stale_staging(parent: Path, stage: str) -> None:
+    """Remove the staging folders of ``stage`` whose run is gone (a killed run's)."""
+    for folder in parent.glob(f".{stage}.staging*"):
+        pid = folder.name.rsplit(".", 1)[-1]
+        if not pid.isdigit() or not _alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _locked(final: Path) -> Iterator[None]:
+    """Hold ``final``'s lock (a file beside it): a second run of the stage committing at
+    the same time waits for this one to finish moving its files in."""
+    final.parent.mkdir(parents=True, exist_ok=True)
+    with open(final.parent / f".{final.name}.lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _files(root: Path) -> set[Path]:
@@ -126,8 +161,10 @@ def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
     """Run a stage: ``main`` writes into the folders :func:`stage_dir` gives and returns its
     output folder. The outputs appear whole or not at all: written into a staging folder,
     moved into place only when ``main`` returns; a failure leaves the previous outputs as
-    they were. Bad arguments or a :class:`LocomanError` end it with a message and exit 2;
-    success ends with :func:`summary_line`."""
+    they were. Each run stages into a folder of its own and commits under the output
+    folder's lock, so two runs at once leave one's outputs whole. Bad arguments or a
+    :class:`LocomanError` end it with a message and exit 2; success ends with
+    :func:`summary_line`."""
     global _staging
     try:
         inspect.signature(main).bind(*argv)
@@ -156,7 +193,8 @@ def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
     if not done:
         sys.exit(2)
     for final, staging in staged.items():
-        commit_staged(final, staging)
+        with _locked(final):
+            commit_staged(final, staging)
         if out == staging:
             out = final
     stage = Path(inspect.getsourcefile(main) or "stage").stem

@@ -110,3 +110,42 @@ def test_a_stage_runs_on_one_blas_thread_whatever_the_machine(data, monkeypatch)
     stage.run_stage(main, ["demo"])
     assert seen["env"] == ("1", "1")
     assert seen["threads"] and set(seen["threads"].values()) == {1}
+
+
+RACER = """
+import sys, time
+from locoman import stage
+
+def main(scenario):
+    out = stage.stage_dir(scenario, "contacts")
+    for i in range(9):
+        (out / f"subtask_{i}.npz").write_text(sys.argv[1] * 1000)
+        time.sleep(0.05)
+    (out / "metrics.json").write_text('{"success": true}')
+    return out
+
+stage.run_stage(main, ["demo"])
+"""
+
+
+def test_two_runs_of_a_stage_at_once_leave_one_whole_output(tmp_path):
+    """Issue 53: two `stages/contacts.py tiny` at once both said "checks passed" and left 7
+    of 9 files: each deleted the other's staging folder. Now each stages into its own and
+    commits under the output folder's lock."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "racer.py"
+    script.write_text(RACER)
+    runs = [
+        subprocess.Popen([sys.executable, str(script), tag], cwd=tmp_path, stdout=subprocess.PIPE)
+        for tag in ("a", "b")
+    ]
+    outs = [run.communicate(timeout=120)[0].decode() for run in runs]
+    assert all(run.returncode == 0 for run in runs) and all("checks passed" in o for o in outs)
+    final = tmp_path / "data" / "demo" / "contacts"
+    files = sorted(p.name for p in final.iterdir())
+    assert files == ["metrics.json"] + [f"subtask_{i}.npz" for i in range(9)]
+    tags = {(final / f"subtask_{i}.npz").read_text()[0] for i in range(9)}
+    assert len(tags) == 1  # every file from the same run
+    assert not list(final.parent.glob(".contacts.staging*"))

@@ -59,9 +59,7 @@ class SolverCfg:
         backend: A key of :data:`BACKENDS`: IPOPT with MUMPS or with SPRAL.
         dt_bounds: Bounds of each time step [s].
         max_iterations: IPOPT's max_iter.
-        tolerance: IPOPT's tol, on its scaled optimality error. The collision penalties'
-            Gauss-Newton Hessian converges linearly at the end: on ``tiny`` the cost is
-            fixed to 8 digits from iteration 165, and 1e-6 took 55 more than 1e-4.
+        tolerance: IPOPT's tol, on its scaled optimality error.
         constraint_tolerance: IPOPT's constr_viol_tol [SI units of each constraint]: the
             dynamics (1) hold to this, whatever ``tolerance``.
         compile: Compile the terms' derivatives to C (cached by their hash, once per
@@ -77,31 +75,16 @@ class SolverCfg:
         max_wall_time_s: IPOPT's max_wall_time [s]: a solve stopped by it is a failed solve
             (status ``Maximum_WallTime_Exceeded``); None: no limit. The grids' time limit.
         hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
-            ``gauss_newton`` (default): the costs' exact Hessian, the penalties' Gauss-Newton
-            one, and none of the constraints' second derivatives; ``exact``: with the
-            constraints' lambda' nabla^2 g and the stage penalties' r nabla^2 r too (the
-            self-collision penalties stay Gauss-Newton). Both converge to the same KKT
-            points (the Hessian is not in the KKT conditions), but only the exact one
-            converges fast where penalties are active at the optimum: S1's exact phase with
-            the penalties' Gauss-Newton Hessian crawled (1000 iterations, scaled dual
-            infeasibility 1e-3 .. 1e-2, regularised in every iteration), and from where it
-            stopped the exact one converged in 107. On ``tiny`` the exact one is indefinite
-            (the products f dt and v dt of (1), the kinematics' trigonometry), IPOPT
-            regularised it in nearly every iteration (2.3 factorisations each) and took 148
-            iterations, 24 s, where Gauss-Newton takes 58, 4.6 s, to the same cost
-            (measured before the penalties' curvature was in it).
+            ``gauss_newton`` (default): the costs' exact Hessian and the penalties'
+            Gauss-Newton one, without the constraints' second derivatives; ``exact``: with
+            them and the penalties' r nabla^2 r (but the robot's own sphere pairs'). Both
+            lead to KKT points of the same problem; the exact one converges fast where
+            penalties are active at the optimum, and is indefinite far from it
+            (``docs/trajectory-optimisation.md``).
         exact_after_iterations: With the ``gauss_newton`` Hessian: a solve that has not
             converged after this many iterations goes on from its primal-dual point with the
-            ``exact`` one (assembled the first time it is needed), up to
-            ``max_iterations`` in all; None: Gauss-Newton throughout. Gauss-Newton leaves
-            out the constraints' curvature, and where that curvature matters IPOPT cycles
-            near the optimum: S2's pick alone (30 nodes) repeated one 100-iteration cycle
-            at cost 217.4 until iteration 500, where the exact Hessian converged in 86
-            (cost 213.5); on all of S2 (208 nodes) the exact Hessian from the start was at
-            cost 1.8e4 after 480 iterations, Gauss-Newton cycled at 2096 with a violation
-            of 1e-4 .. 1e-1, and 300 Gauss-Newton iterations then 68 exact ones converged
-            (cost 2096.4; measured before the trolley's collision boxes). ``tiny``
-            converges before the switch.
+            ``exact`` one, up to ``max_iterations`` in all (Gauss-Newton cycles near an
+            optimum where the constraints' curvature matters); None: Gauss-Newton throughout.
     """
 
     backend: str = "ipopt_mumps"

@@ -60,47 +60,35 @@ def _default_self_pairs() -> list[list[str]]:
 class CollisionCfg:
     """The collision terms of the TO (paper A, Sec. IV-D). Each kind has a treatment of
     :data:`TREATMENTS`: ``off``, ``penalty`` (12), ``constraint`` (11) or ``homotopy``
-    (13) (the kinds against boxes: a sphere pair is its own smooth stand-in); a change of
-    treatment changes the problem's structure (one compile).
+    (13) (the kinds against boxes: a sphere pair is its own smooth stand-in). A treatment is
+    data: changing one compiles nothing.
 
-    The defaults follow Sec. V-A's minimal set for S2, the hands against the objects with
-    (12), but with (12) for the legs against the objects and the knees against each other
-    where the paper has (13) and (11): with those S2 diverged (see ``legs_object``,
-    ``knee_collision``). The arms against the trunk and the carried object against the
-    fixed ones have (12) too.
+    The defaults follow Sec. V-A's minimal set, but with (12) for the legs against the
+    objects and the knees against each other where the paper has (13) and (11): with those
+    S2 diverged (``docs/trajectory-optimisation.md``). Pairs the solution needs beyond the
+    set are found along it (``found``).
 
     Attributes:
         self_pairs: Link pairs of the G1 kept apart between their spheres (the arms and
             the trunk).
         self_collision: Treatment of ``self_pairs``.
         knee_pairs: Link pairs of the legs kept apart while walking.
-        knee_collision: Treatment of ``knee_pairs``; not ``homotopy``. As the constraint
-            (11) (the paper's choice for S2) S2 diverged (cost 2e7 after 80 iterations,
-            against 2403 with the penalty), although the penalty's optimum keeps the
-            knees apart to 0.2 mm: the default is the penalty.
+        knee_collision: Treatment of ``knee_pairs``; not ``homotopy``.
         object_body: Between the trunk's body points (pelvis, torso) and each object (its
             box; a trolley's chassis and handle frame).
         hands_object: Between each palm while it does not touch the object, and the
             object; a non-solid object's parts check the forearms too; the elbows always.
             The forearms of the hands holding an open object (a basket) are kept out of
-            its parts with the least margin (``SphereBox.touching``).
-        legs_object: Between the legs (the hips', thighs' and shins' capsule spheres) and each
-            object's boxes.
-            As the homotopy (13) (the paper's choice for S2's legs against the trolley)
-            S2 diverged (cost 5.9e6 after 80 iterations, alpha still 0.97): the default
-            is the penalty.
+            its parts with the least margin (touching allowed).
+        legs_object: Between the hips', thighs' and shins' spheres and each object's boxes.
         feet_object: Between the feet (a heel and a toe sphere each) and every object
-            resting on the floor, but for a foot whose sole rests on its top (Sec. V-A,
-            S1: the feet against the box stepped onto; S2: a trolley's wheels, which a
-            foot went 2.4 cm into while pushing when only a stepped-onto object counted).
-            A solid object is its box, a wheeled one its wheels' boxes (against its
-            chassis box S2 stopped at 1000 iterations, the robot a stride back and its
-            wrists in the handle). Objects on a table or carried are out of the feet's way.
-        hands_environment: Between the palms and every fixed object's bounding box.
-        feet_environment: Between the feet (a heel and a toe sphere each) and every fixed
-            object's bounding box. Off by default: S2's scene keeps the walk clear of the
-            table's legs, and with it on S2's exact-Hessian phase crawled (cost 2358 at
-            1000 iterations, not converged, with the place target by the table's leg).
+            resting on the floor, but for a foot whose sole rests on its top (S1's box,
+            S2's wheels: a wheeled object's wheels, not its chassis box, which the feet
+            pass under while pushing).
+        hands_environment: Between the palms and forearms and every fixed object's
+            bounding box.
+        feet_environment: Between the feet and every fixed object's bounding box (off by
+            default: with it S2's exact phase crawled).
         found: The pairs found along a solution (:mod:`locoman.to.pair_search`): every pair
             of bodies that a replay of the solution in MuJoCo finds closer than
             ``audit_margin_m`` and the TO does not model joins the problem at the nodes
@@ -114,8 +102,8 @@ class CollisionCfg:
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
         object_environment: Between the corners of the object, while no support holds it,
             and every fixed object's bounding box, and between the obstacles' vertical and
-            top edges and the object. (As the constraint (11) the four bottom corners of a
-            level box are dependent, and IPOPT stalled: keep it a penalty.)
+            top edges and the object (as (11) the bottom corners of a level box are
+            dependent, and IPOPT stalled: keep it a penalty).
         margin_m: Clearance added to every pair [m].
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.

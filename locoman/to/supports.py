@@ -124,7 +124,8 @@ class OnObject(Support):
     (5a) the two normals aligned;
     (5b) no relative rotation about the normal, over the step (at touchdown: no relative
          rate);
-    (6)  the base receives the opposite wrench at the same point (:class:`StageBuilder`);
+    (6)  the base receives the opposite wrench at the same point (its wrench term, with the
+         opposite sign, on the base's momentum rows: :mod:`locoman.to.transcription`);
     (3)  with the object's bottom half sizes and friction.
 
     (4) and (5b) are written over the step, like (2b) of :func:`patch_contact`: the rate
