@@ -67,6 +67,40 @@ def test_corrupt_artifact_is_reported(tmp_path):
         read_json(js, PLAN)
 
 
+def test_a_value_that_is_not_finite_is_named_with_its_place(tmp_path):
+    """Issue 53: a NaN in a keyframe ended as a raw ValueError three stages later; it is
+    refused where the artifact is read, naming the field, the first bad entry and the stage
+    to rerun. A field in which NaN means "none" keeps its NaN."""
+    path = tmp_path / "nan.npz"
+    arrays = _arrays()
+    write_npz(path, TRAJ, arrays)
+    with np.load(path, allow_pickle=False) as npz:  # the same file, a NaN written in
+        written = {k: npz[k] for k in npz.files}
+    written["q"] = np.where(np.eye(4, 3) > 0, np.nan, written["q"])
+    np.savez(path, **written)
+    with pytest.raises(ArtifactError, match=r"'q' is not finite at \(0, 0\).*stage 'solve'"):
+        read_npz(path, TRAJ)
+    arrays["dt"][2] = np.inf
+    with pytest.raises(ArtifactError, match=r"'dt' is not finite at \(2,\): inf"):
+        write_npz(tmp_path / "inf.npz", TRAJ, arrays)
+    optional = ArtifactSchema(
+        "test.goals", 1, "solve", (Field("goal", "float64", (2,), "m", nan_allowed=True),)
+    )
+    write_npz(tmp_path / "goal.npz", optional, {"goal": np.array([np.nan, 1.0])})
+    assert np.isnan(read_npz(tmp_path / "goal.npz", optional)["goal"][0])
+
+
+def test_bytes_flipped_inside_an_npz_are_a_corrupt_artifact(tmp_path):
+    path = tmp_path / "flipped.npz"
+    write_npz(path, TRAJ, _arrays(200))
+    data = bytearray(path.read_bytes())
+    start = data.index(b"q.npy") + 80
+    data[start : start + 40] = bytes(40)
+    path.write_bytes(bytes(data))
+    with pytest.raises(ArtifactError, match="corrupt"):
+        read_npz(path, TRAJ)
+
+
 def test_wrong_schema_version_is_reported(tmp_path):
     path = tmp_path / "t.npz"
     old = ArtifactSchema("test.trajectory", 1, "solve", TRAJ.fields)

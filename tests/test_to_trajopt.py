@@ -281,3 +281,17 @@ def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):
         "found",  # pairs found along a solution, none before
         "found_hard",
     }
+
+
+def test_a_schedule_too_large_is_refused_before_anything_is_built():
+    """Issue 53: solve.schedule.swing_nodes=100000 ran 2 min and died with std::bad_alloc."""
+    from locoman.to.schedule import MAX_PHASE_NODES, build_schedule
+
+    errors = dict(ScheduleCfg(swing_nodes=100000).check())
+    assert "swing_nodes" in errors and str(MAX_PHASE_NODES) in errors["swing_nodes"]
+    far = _squat_inputs()
+    far = dataclasses.replace(
+        far, keyframes=[Keyframe("walk", np.r_[60.0, g1.standing_q35()[1:]], None, BOX_ON_TABLE)]
+    )
+    with pytest.raises(ConfigError, match="nodes, more than the TO's"):
+        build_schedule(far, ScheduleCfg(step_length_m=0.05, swing_nodes=50))

@@ -13,6 +13,7 @@ import json
 import os
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -148,7 +149,7 @@ def read_npz(path: str | Path, schema: ArtifactSchema) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error) as exc:
         raise schema.error(path, f"file is corrupt ({type(exc).__name__}: {exc})") from None
     _check_meta(schema, path, arrays.pop(_META_KEY, None))
     schema.check_arrays(arrays, path)

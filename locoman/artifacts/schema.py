@@ -28,6 +28,8 @@ class Field:
         doc: What the field holds.
         items: For a JSON ``object`` (each value) or ``list`` (each element): the keys every
             entry must hold, with their JSON types (a ``?`` suffix allows null).
+        nan_allowed: A float field in which NaN means "none" (a keypoint not seen, no
+            goal); every other float field must be finite.
     """
 
     name: str
@@ -36,6 +38,7 @@ class Field:
     unit: str = "-"
     doc: str = ""
     items: tuple[tuple[str, str], ...] = ()
+    nan_allowed: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,6 +92,22 @@ class ArtifactSchema:
                         path,
                         f"field {f.name!r} has {want} = {got}, other fields have {sizes[want]}",
                     )
+            self._check_values(f, arr, path)
+
+    def _check_values(self, f: Field, arr: np.ndarray, path: Any) -> None:
+        """A float field's entries are finite (NaN too where it means "none"): a NaN in a
+        keyframe once surfaced three stages later as a raw ValueError."""
+        if arr.dtype.kind != "f" or arr.size == 0:
+            return
+        bad = ~np.isfinite(arr)
+        if f.nan_allowed:
+            bad &= ~np.isnan(arr)
+        if bad.any():
+            index = tuple(int(i) for i in np.argwhere(bad)[0])
+            where = index if arr.ndim else "()"
+            raise self.error(
+                path, f"field {f.name!r} is not finite at {where}: {arr[index]} ({f.doc})"
+            )
 
     def check_json(self, data: Mapping[str, Any], path: Any) -> None:
         """Check presence and JSON type of every top-level field; no extra keys allowed."""

@@ -120,7 +120,14 @@ CLOUDS = ArtifactSchema(
         Field("points_gen_m", "float64", ("N", 3), "m", "object cloud of R_g, camera frame"),
         Field("points_sim_m", "float64", ("M", 3), "m", "object cloud of R_s, scene world"),
         Field("keypoint_names", "str", ("K",)),
-        Field("keypoints_cam_m", "float64", ("K", 3), "m", "lifted 2D keypoints; NaN if none"),
+        Field(
+            "keypoints_cam_m",
+            "float64",
+            ("K", 3),
+            "m",
+            "lifted 2D keypoints; NaN if none",
+            nan_allowed=True,
+        ),
     ),
 )
 

@@ -33,6 +33,12 @@ import numpy as np
 from locoman.errors import ConfigError
 from locoman.to.inputs import Keyframe, TOInputs, base_yaw, sole_points
 
+# What a schedule may cost: a phase of more nodes, or a problem of more, than this is refused
+# before anything is allocated (100000 swing nodes ran 2 min and died with std::bad_alloc).
+MAX_PHASE_NODES = 50
+MAX_NODES = 1000
+_TOO_MANY = "each node adds about 200 variables and their derivatives to the NLP"
+
 
 @dataclasses.dataclass
 class ScheduleCfg:
@@ -68,6 +74,11 @@ class ScheduleCfg:
     def check(self) -> list[tuple[str, str]]:
         counts = dataclasses.asdict(self)
         errors = [(k, "must be >= 1") for k, v in counts.items() if k.endswith("_nodes") and v < 1]
+        errors += [
+            (k, f"must be <= {MAX_PHASE_NODES}, got {v}: {_TOO_MANY}")
+            for k, v in counts.items()
+            if k.endswith("_nodes") and v > MAX_PHASE_NODES
+        ]
         if min(self.step_length_m, self.step_yaw_rad) <= 0.0:
             errors.append(("step_length_m", "step length and turn must be > 0"))
         if not 0.0 <= self.end_lift_m <= 0.5:
@@ -305,4 +316,10 @@ def build_schedule(inputs: TOInputs, cfg: ScheduleCfg) -> Schedule:
         feet_before, yaw_before = feet, base_yaw(kf.q35)
         if pushed:  # the feet follow the object to its goal
             feet_before = feet_before + (kf.goal[:2] - kf.object_poses[kf.object][:2])
+    nodes = 1 + sum(p.nodes for p in phases)
+    if nodes > MAX_NODES:
+        raise ConfigError(
+            f"the contact schedule has {nodes} nodes, more than the TO's {MAX_NODES}: "
+            f"{_TOO_MANY}; lower solve.schedule's node counts or step sizes"
+        )
     return Schedule.from_phases(phases)
