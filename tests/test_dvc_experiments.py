@@ -83,3 +83,25 @@ def test_an_objects_extents_rerun_the_scene(workdir, run_cli):
     assert run.returncode == 0, run.stdout + run.stderr
     assert box_extents() == pytest.approx(wider)
     params.write_text(original)
+
+
+def test_a_misspelt_key_fails_the_experiment_naming_it(workdir, run_cli):
+    """issue 49: ``-S +scenario.box_mas=5`` changed no parameter that ``scene@tiny`` tracks, so
+    DVC skipped it and the experiment succeeded with the typo recorded. The ``validate``
+    stage tracks all of params.yaml and runs before every root stage."""
+    git = ["git", "-c", "user.name=test", "-c", "user.email=test@example.com"]
+    dvc = [sys.executable, "-m", "dvc"]
+    assert run_cli([*dvc, "repro", "scene@tiny"], workdir).returncode == 0
+    assert run_cli([*git, "add", "-A"], workdir).returncode == 0
+    assert run_cli([*git, "commit", "-qm", "typo", "--allow-empty"], workdir).returncode == 0
+    run = run_cli([*dvc, "exp", "run", "-S", "+scenario.box_mas=5", "scene@tiny"], workdir)
+    assert run.returncode != 0, run.stdout + run.stderr
+    assert "scenario.box_mas" in run.stdout + run.stderr
+    assert "Running stage 'scene@tiny'" not in run.stdout
+    # A valid change of a parameter the scene does not track reruns the check only.
+    assert run_cli([*git, "checkout", "--", "params.yaml"], workdir).returncode == 0
+    run = run_cli([*dvc, "exp", "run", "-S", "retarget.base_weight=11.0", "scene@tiny"], workdir)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "Running stage 'validate'" in run.stdout, run.stdout
+    assert "Running stage 'scene@tiny'" not in run.stdout, run.stdout
+    assert run_cli([*git, "checkout", "--", "params.yaml"], workdir).returncode == 0

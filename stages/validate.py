@@ -1,0 +1,32 @@
+"""Stage `validate`: the whole composed configuration, checked before any other stage runs.
+
+Usage: python stages/validate.py   (reads params.yaml, writes data/params/validated.json)
+
+DVC reruns a stage only when one of its own parameters changes, so a misspelt key
+(`dvc exp run -S +scenario.box_mas=5`) reached no stage's validation and the experiment
+"succeeded". This stage depends on every key of params.yaml, and every root stage depends on
+its output, whose content does not change with the parameters: a bad key fails here, naming
+its path, and a good change reruns only what depends on it.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from locoman.artifacts import write_json_atomic
+from locoman.config import load_params
+from locoman.stage import DATA_DIR, run_stage
+
+CHECKED = DATA_DIR / "params" / "validated.json"
+
+
+def main() -> Path:
+    load_params()  # raises ConfigError naming the key
+    CHECKED.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(CHECKED, {"params.yaml": "valid"})
+    return CHECKED.parent
+
+
+if __name__ == "__main__":
+    run_stage(main, sys.argv[1:])
