@@ -53,6 +53,31 @@ def test_a_truncated_library_is_rebuilt_not_loaded(tmp_path, capsys):
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
+def test_two_libraries_swapped_with_their_records_are_rebuilt(tmp_path):
+    """issue 53: each library matched its own record, so the swap loaded and CasADi failed
+    in External::init; the record names the unit it was built for."""
+    batches = [[_tiny_function("f_jac")], [_tiny_function("g_jac")]]
+    compile_units(batches, tmp_path)
+    a, b = sorted(tmp_path.glob("to_*.so"))
+    for suffix in (".so", ".json"):
+        first, second = a.with_suffix(suffix), b.with_suffix(suffix)
+        first.rename(tmp_path / "swap")
+        second.rename(first)
+        (tmp_path / "swap").rename(second)
+    fns = compile_units(batches, tmp_path)
+    assert float(fns["g_jac"]([0.5, 2.0])) == pytest.approx(2.0 * np.sin(0.5))
+
+
+def test_a_cache_folder_that_cannot_be_made_names_the_variable(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(SolverBuildError, match="LOCOMAN_CACHE_DIR"):
+        compile_units([[_tiny_function("f_jac")]], blocker / "cache")
+    with pytest.raises(SolverBuildError, match="LOCOMAN_CACHE_DIR"):
+        load_or_compile([Recipe("x", lambda: ([], {}))], blocker / "cache")
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 def test_an_indexed_recipe_is_loaded_without_making_its_functions(tmp_path):
     made = []
 

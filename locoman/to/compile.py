@@ -86,18 +86,35 @@ def _unit(functions: Sequence[ca.Function], compiler: str, flags: Sequence[str])
     return Unit(tuple(functions), source, digest)
 
 
-def _record(library: Path) -> dict:
+def _record(library: Path, key: str) -> dict:
+    # The key names the unit the library was built for: a library moved under another
+    # unit's name, with its record, still matches its bytes but not the name.
     data = library.read_bytes()
-    return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    return {"key": key, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _key(library: Path) -> str:
+    return library.stem.removeprefix("to_")
 
 
 def _valid(library: Path) -> bool:
-    """The library exists and matches the record written when it was built."""
+    """The library exists, is the one built for its name, and matches the record written
+    when it was built."""
     record = library.with_suffix(".json")
     try:
-        return json.loads(record.read_text()) == _record(library)
+        return json.loads(record.read_text()) == _record(library, _key(library))
     except (OSError, ValueError):
         return False
+
+
+def _make_cache(directory: Path) -> None:
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SolverBuildError(
+            f"the compile cache {directory} cannot be created ({exc.strerror}); set "
+            f"{CACHE_ENV} (or solve.cache_dir) to a folder you can write"
+        ) from None
 
 
 def _build(unit: Unit, library: Path, compiler: str, flags: Sequence[str]) -> None:
@@ -111,7 +128,7 @@ def _build(unit: Unit, library: Path, compiler: str, flags: Sequence[str]) -> No
     try:
         subprocess.run(cmd, check=True, capture_output=True, text=True)
         record = library.with_name(f"{library.stem}.{tag}.json.part")
-        record.write_text(json.dumps(_record(partial)))
+        record.write_text(json.dumps(_record(partial, _key(library))))
         record.rename(library.with_suffix(".json"))
         partial.rename(library)
     except subprocess.CalledProcessError as exc:
@@ -139,7 +156,7 @@ def _ensure_built(
     """Each batch's library in ``directory``, compiled where none valid is there."""
     cc = compiler(flags)
     units = [_unit(fns, cc, flags) for fns in batches]
-    directory.mkdir(parents=True, exist_ok=True)
+    _make_cache(directory)
     library = {u.key: directory / f"to_{u.key}.so" for u in units}
     missing = list({u.key: u for u in units if not _valid(library[u.key])}.values())
     if missing:
@@ -228,7 +245,7 @@ def load_or_compile(
     Raises:
         SolverBuildError: No C compiler, or one failed.
     """
-    directory.mkdir(parents=True, exist_ok=True)
+    _make_cache(directory)
     paths = [_index_path(directory, r, flags) for r in recipes]
     found = [_indexed(path) for path in paths]
     todo = [i for i, entry in enumerate(found) if entry is None]
@@ -237,7 +254,7 @@ def load_or_compile(
     for i, library in zip(todo, libraries, strict=True):
         functions, data = made[i]
         names = [fn.name() for fn in functions]
-        entry = {"library": library.stem.removeprefix("to_"), "functions": names, "data": data}
+        entry = {"library": _key(library), "functions": names, "data": data}
         partial = paths[i].with_name(f"{paths[i].stem}.{os.getpid()}.{time.monotonic_ns()}")
         partial.write_text(json.dumps(entry))
         partial.rename(paths[i])
