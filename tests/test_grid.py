@@ -41,7 +41,7 @@ from locoman.grid.figures import (
     setting_table,
     summary_csv,
 )
-from locoman.grid.launch import cells, multirun_command
+from locoman.grid.launch import cells, check_overrides, multirun_command
 from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_run
 from locoman.grid.sources import PACKAGE, imported_sources, imports_of
 from locoman.scene.builder import build_scene
@@ -427,3 +427,24 @@ def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, mon
     with pytest.raises(ConfigError, match="unknown figures"):
         report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig7"])
     assert launched == ["fig6"]
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("cell.box_mass=abc", r"cell.box_mass='abc': must be a float"),
+        ("cell.box_mass=2.5,abc", r"cell.box_mass='abc'"),
+        ("cell.box_mas=3", r"cell.box_mas: a cell has no such key"),
+        ("cell.initial_yaw=1,9", r"cell.initial_yaw='9': must be in \[-pi, pi\]"),
+        ("cell.run=nokey", r"cell.run='nokey'"),
+        ("cell.box_mass=[", r"grid overrides"),
+    ],
+)
+def test_a_bad_grid_override_names_its_key_before_hydra_runs(override, message):
+    """issue 53: ``cell.box_mass=abc`` was a Hydra traceback from inside the multirun."""
+    with pytest.raises(ConfigError, match=message):
+        check_overrides("tiny", "fig5", [override])
+
+
+def test_good_grid_overrides_pass_the_check():
+    check_overrides("tiny", "fig6", ["cell.box_mass=2.5,7.5", "hydra.launcher.n_jobs=1", "x=1"])

@@ -13,9 +13,13 @@ a cluster, finishes where it left off.
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
+
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import OverrideParseException
 
 from locoman.config import load_params
 from locoman.config.schema import RootCfg
@@ -49,6 +53,47 @@ def cells(cfg: RootCfg, scenario: str, figure: str) -> list[CellCfg]:
 
 def _values(values: list) -> str:
     return ",".join(dict.fromkeys(str(v) for v in values))
+
+
+def check_overrides(scenario: str, figure: str, extra: list[str]) -> None:
+    """Every ``cell.<key>=...`` override names a cell field and each of its values is one a
+    cell accepts, checked here: inside the multirun a bad value is a Hydra traceback per job.
+
+    Raises:
+        ConfigError: Naming the override, the key and what it must be.
+    """
+    try:
+        overrides = OverridesParser.create().parse_overrides(list(extra))
+    except OverrideParseException as exc:
+        raise ConfigError(f"grid overrides {list(extra)}: {exc}") from None
+    fields = {f.name: f for f in dataclasses.fields(CellCfg)}
+    base = CellCfg(scenario, figure)
+    for override in overrides:
+        key = override.key_or_group.removeprefix("+")
+        if not key.startswith("cell."):
+            continue
+        name = key.removeprefix("cell.")
+        if name not in fields:
+            raise ConfigError(
+                f"grid override {key}: a cell has no such key; it has {sorted(fields)}"
+            )
+        values = (
+            list(override.sweep_string_iterator())
+            if override.is_sweep_override()
+            else [override.get_value_element_as_str()]
+        )
+        default = fields[name].default
+        for text in values:
+            try:
+                value = type(default)(text)
+            except ValueError:
+                raise ConfigError(
+                    f"grid override {key}={text!r}: must be a {type(default).__name__} "
+                    f"(e.g. {key}={default})"
+                ) from None
+            for field, message in dataclasses.replace(base, **{name: value}).check():
+                if field == name:
+                    raise ConfigError(f"grid override {key}={text!r}: {message}")
 
 
 def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str]) -> list[str]:
@@ -85,6 +130,7 @@ def launch(
         LocomanError: The multirun itself failed (a cell's failure does not fail it).
     """
     cfg = load_params(params_file)
+    check_overrides(scenario, figure, list(extra))
     command = multirun_command(cfg, scenario, figure, list(extra))
     if Path(params_file) != Path("params.yaml"):
         command.append(f"params_file={params_file}")
