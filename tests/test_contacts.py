@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -367,6 +369,15 @@ def test_learned_descriptor_loads_torchscript_and_fails_clearly(tmp_path):
     desc = describe(rgb, mask, np.array([[20.0, 20.0], [40.0, 30.0]]))
     assert desc.shape == (2, 8)
     np.testing.assert_allclose(np.linalg.norm(desc, axis=1), 1.0, atol=1e-6)
+
+
+def test_learned_descriptor_without_torch_says_which_extra_installs_it(tmp_path, monkeypatch):
+    """issue 53: a raw ModuleNotFoundError, where the other learned backends named the extra."""
+    weights = tmp_path / "backbone.pt"
+    weights.write_bytes(b"")
+    monkeypatch.setitem(sys.modules, "torch", None)  # import torch raises ImportError
+    with pytest.raises(ModelError, match=r"pip install -e \.\[learned\]"):
+        semantic.LearnedDescriber(str(weights))
 
 
 def test_contacts_config_rejects_bad_values():

@@ -24,6 +24,7 @@ import numpy as np
 
 from locoman.config.contacts import PoolCfg
 from locoman.errors import ModelError, SceneError
+from locoman.perception.weights import require_package
 
 MIN_POOL_POINTS = 3  # an SVD needs three matches
 OBJECT_SIZE_PX = 96.0  # [px] the object's box is resized to this geometric-mean size for SIFT
@@ -102,8 +103,7 @@ class LearnedDescriber:
                 f"contacts.pool.weights_file {path} does not exist (nothing is "
                 "downloaded; copy the exported backbone there)"
             )
-        import torch
-
+        torch = require_package("torch")
         try:
             self._model = torch.jit.load(str(path), map_location="cpu").eval()
         except (RuntimeError, ValueError) as err:
