@@ -44,13 +44,19 @@ def main() -> Path:
     )
     k = int(np.argmin(np.abs(demos.time_s - d.grasp_time_s)))
     speed = np.linalg.norm(demos.wrist_vel[selected, k], axis=1)
+    worst = float(miss[selected].max())
+    # A selected demonstration whose wrist misses the bottle did not show the task: learning
+    # from it would teach the miss.
+    failed = ["grasp_miss"] if worst > d.grasp_miss_max_m else []
     write_json_atomic(
         out / "metrics.json",
         {
+            "success": not failed,
+            "failed_checks": failed,
             "n_recorded": len(miss),
             "n_selected": len(selected),
             "duration_s": float(demos.time_s[-1]),
-            "grasp_miss_selected_max_m": float(miss[selected].max()),
+            "grasp_miss_selected_max_m": worst,
             "grasp_miss_rejected_min_m": float(np.delete(miss, selected).min(initial=np.inf))
             if len(selected) < len(miss)
             else 0.0,

@@ -74,7 +74,14 @@ def main() -> Path:
         metrics["cases"][name] = {"via_error": case.via_errors, "kmp_seconds": case.fit_s}
     fit_s = gmr_s + min(c["kmp_seconds"] for c in metrics["cases"].values())
     vs_gmr = kmp_vs_gmr(ref, k)
+    failed = [
+        f"{name}.via_point_error"
+        for name, case in metrics["cases"].items()
+        if case["via_error"]["position_m"] > k.via_point_error_max_m
+    ]
     metrics |= {
+        "success": not failed,
+        "failed_checks": failed,
         "via_point_error_max": max(c["via_error"]["position_m"] for c in metrics["cases"].values()),
         "kmp_vs_gmr_rmse": vs_gmr["position_m"],
         "kmp_vs_gmr": vs_gmr,

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
 import yaml
 
 from locoman.config import load_params
-from locoman.errors import DemoError
+from locoman.errors import ConfigError, DemoError
 from locoman.kmp.demos import TaskPoints, synthetic_demos
 from locoman.kmp.mocap_csv import COLUMNS, load_demo_dir, read_demo_csv, write_demo_csv
 from locoman.kmp.sources import collect_demos
@@ -123,6 +124,34 @@ def test_millimetres_are_refused_where_the_data_enters(tmp_path, cfg):
         load_demo_dir(tmp_path / "rec", 100.0, 26.0)
 
 
+def test_a_demo_shorter_than_the_task_is_refused_not_padded(tmp_path, cfg):
+    """issue 53: a recording cut at 8 s was padded with its last sample and learned from."""
+    demos, *_ = synthetic_demos(cfg, TASK, seed=1)
+    cut = demos.time_s <= 8.0
+    write_demo_csv(
+        tmp_path / "d.csv", demos.time_s[cut], demos.wrist_pos[0, cut], demos.pelvis[0, cut]
+    )
+    with pytest.raises(DemoError, match=r"d.csv lasts 8.000 s, shorter than the task"):
+        load_demo_dir(tmp_path, 100.0, 26.0)
+    assert load_demo_dir(tmp_path, 100.0, 8.0).time_s[-1] == pytest.approx(8.0)
+
+
+def test_via_points_at_one_time_or_after_the_task_are_refused(repo):
+    """issue 53: two via points 55 cm apart at one time were averaged (via error 0.27 m); one
+    at 1000 s on a 26 s task was accepted."""
+    from locoman.config.load import validate
+
+    raw = yaml.safe_load((repo / "params.yaml").read_text())
+    points = raw["kmp"]["cases"]["replica"]["via_points"]
+    points.append({**points[0], "wrist_pos": [0.0, 0.0, 1.0], "at": None})
+    with pytest.raises(ConfigError, match=r"kmp.cases.replica.via_points\[\d\].time_s.*merge"):
+        validate(raw)
+    points.pop()
+    points.append({"time_s": 1000.0, "wrist_pos": [0.0, 0.0, 1.0]})
+    with pytest.raises(ConfigError, match=r"via_points\[\d\].time_s.*after the task's end"):
+        validate(raw)
+
+
 def test_a_binary_file_is_refused_with_a_message(tmp_path):
     (tmp_path / "d.csv").write_bytes(bytes(range(256)) * 4)
     with pytest.raises(DemoError, match="not a text CSV"):
@@ -140,3 +169,20 @@ def test_the_demos_stage_depends_on_the_recordings_folder(repo, cfg):
     stage = yaml.safe_load((repo / "dvc.yaml").read_text())["stages"]["demos"]
     assert "${demos.csv_dir}" in stage["deps"]
     assert (repo / cfg.csv_dir).is_dir()
+
+
+@pytest.mark.slow
+def test_the_demos_stage_judges_its_demonstrations(workdir, run_cli):
+    """issue 53: demonstrations that miss the bottle were learned from under "checks
+    passed"; the stage writes ``success`` / ``failed_checks`` like ``evaluate``."""
+    params = workdir / "params.yaml"
+    raw = yaml.safe_load(params.read_text())
+    raw["demos"]["grasp_miss_max_m"] = 0.001  # every synthetic demo misses by more
+    params.write_text(yaml.safe_dump(raw, sort_keys=False))
+    scene = run_cli(["python", "stages/scene.py", "mm_pick_place"], workdir)
+    assert scene.returncode == 0, scene.stderr
+    run = run_cli(["python", "stages/demos.py"], workdir)
+    assert run.returncode == 0, run.stderr
+    assert "FAILED" in run.stdout.upper() and "grasp_miss" in run.stdout, run.stdout
+    metrics = json.loads((workdir / "data/mm_pick_place/demos/metrics.json").read_text())
+    assert metrics["success"] is False and metrics["failed_checks"] == ["grasp_miss"]

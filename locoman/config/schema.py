@@ -224,6 +224,16 @@ class RootCfg:
         ]
         if self.demos.scenario not in self.scenarios:
             errors.append(("demos.scenario", f"{self.demos.scenario!r} is not a scenario"))
+        for case, case_cfg in self.kmp.cases.items():
+            for i, point in enumerate(case_cfg.via_points):
+                if point.time_s > self.demos.duration_s:
+                    errors.append(
+                        (
+                            f"kmp.cases.{case}.via_points[{i}].time_s",
+                            f"{point.time_s} s is after the task's end "
+                            f"(demos.duration_s = {self.demos.duration_s} s)",
+                        )
+                    )
         for name in self.perception.scenarios:
             if name not in self.scenarios or self.scenarios[name].robot != "g1":
                 errors.append(("perception.scenarios", f"{name!r} is not a G1 scenario"))

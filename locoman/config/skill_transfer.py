@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from pathlib import PurePosixPath
@@ -52,6 +53,9 @@ class DemosCfg:
         path_jitter_m: Std of free waypoint offsets [m].
         contact_jitter_m: Std of the wrist's miss of the bottle and of the target [m].
         yaw_jitter_rad: Std of pelvis yaw offsets [rad].
+        grasp_miss_max_m: The check of the ``demos`` stage: every selected demonstration's
+            wrist passes within this distance of the grasp point at ``grasp_time_s`` [m]; a
+            demonstration farther away did not show the task.
     """
 
     source: str = "synthetic"
@@ -77,6 +81,7 @@ class DemosCfg:
     path_jitter_m: float = 0.03
     contact_jitter_m: float = 0.004
     yaw_jitter_rad: float = 0.04
+    grasp_miss_max_m: float = 0.05
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -113,6 +118,8 @@ class DemosCfg:
             errors += _vec(name, getattr(self, name), n)
         if min(self.timing_jitter_s, self.path_jitter_m, self.contact_jitter_m) < 0.0:
             errors.append(("timing_jitter_s", "jitters must be >= 0"))
+        if not self.grasp_miss_max_m > 0.0:
+            errors.append(("grasp_miss_max_m", f"must be > 0 m, got {self.grasp_miss_max_m}"))
         return errors
 
 
@@ -185,6 +192,8 @@ class KmpCfg:
             that point's constrained outputs; any other is inserted [s] (one control period).
         covariance_regularization: lambda_c of the covariance prediction (KMP paper), which
             scales it by N / lambda_c.
+        via_point_error_max_m: The check of the ``kmp_fit`` stage: every case's prediction
+            passes within this distance of its via points' wrist positions [m].
         rate_hz: Rate of the predicted reference the controller tracks [Hz] (paper: 1 kHz).
         pelvis_to_base_m: Sigma_R sits this far ahead of Sigma_B (paper: 0.3875 m); the
             learned pelvis maps to Sigma_R, the base command is in Sigma_B.
@@ -200,6 +209,7 @@ class KmpCfg:
     via_point_variance: float = 1e-10
     via_point_time_tol_s: float = 1e-3
     covariance_regularization: float = 260.0
+    via_point_error_max_m: float = 0.01
     rate_hz: float = 1000.0
     pelvis_to_base_m: float = 0.3875
     cases: dict[str, KmpCaseCfg] = field(default_factory=dict)
@@ -218,8 +228,22 @@ class KmpCfg:
             errors.append(("via_point_time_tol_s", "must be a finite time >= 0 s"))
         if not 0.0 < self.covariance_regularization < math.inf:
             errors.append(("covariance_regularization", "must be finite and > 0"))
+        if not self.via_point_error_max_m > 0.0:
+            errors.append(("via_point_error_max_m", "must be > 0 m"))
         if not self.cases:
             errors.append(("cases", "define at least one case"))
+        for name, case in self.cases.items():
+            times = sorted((p.time_s, i) for i, p in enumerate(case.via_points))
+            for (t0, i), (t1, j) in itertools.pairwise(times):
+                # Two via points at one input average into a point neither asked for.
+                if t1 - t0 <= self.via_point_time_tol_s:
+                    errors.append(
+                        (
+                            f"cases.{name}.via_points[{j}].time_s",
+                            f"{t1} s is within via_point_time_tol_s of via_points[{i}] "
+                            f"({t0} s): merge them into one via point",
+                        )
+                    )
         return errors
 
 

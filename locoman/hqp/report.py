@@ -80,6 +80,15 @@ def replay_metrics(
     tilt = float(np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)))
     final_error = float(np.linalg.norm(log.obj_pos[-1] - task.target))
     lifted = float(log.obj_pos[:, 2].max() - log.obj_pos[0, 2])
+    failed = [
+        name
+        for name, ok in (
+            ("bottle_final_error", final_error <= tolerance_m),
+            ("bottle_upright", tilt <= UPRIGHT_TOL_RAD),
+            ("bottle_lifted", lifted >= LIFT_MIN_M),
+        )
+        if not ok
+    ]
     return {
         "rmse_ee_pos_m": _rmse(log.ee_pos, log.ee_pos_desired),
         "rmse_ee_vel_mps": _rmse(log.ee_vel, log.ee_vel_desired),
@@ -89,9 +98,8 @@ def replay_metrics(
         "bottle_final_error_m": final_error,
         "bottle_tilt_rad": tilt,
         "bottle_lift_m": lifted,
-        "success": bool(
-            final_error <= tolerance_m and tilt <= UPRIGHT_TOL_RAD and lifted >= LIFT_MIN_M
-        ),
+        "success": not failed,
+        "failed_checks": failed,
         "bound_violation_max": bound_violation(log, limits, dt),
         "level1_residual_max": float(log.level1_residual.max()),
         "hqp_step_median_s": float(np.median(log.hqp_step_s)),

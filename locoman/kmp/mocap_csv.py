@@ -15,8 +15,8 @@ column                                     meaning
 =========================================  =============================================
 
 Loading shifts time to start at 0, takes the wrist velocity by central differences (as a
-motion-capture pipeline does), and resamples every file onto one grid: a file shorter than the
-grid holds its last sample (the subject stands still), a longer one is cut.
+motion-capture pipeline does), and resamples every file onto one grid: a longer file is cut, a
+shorter one refused (padding it would teach the robot to stop where the recording stopped).
 """
 
 from __future__ import annotations
@@ -102,8 +102,8 @@ def load_demo_dir(folder: str | Path, rate_hz: float, duration_s: float) -> Demo
     """All ``*.csv`` demonstrations in ``folder`` (sorted by name) on a common grid.
 
     Raises:
-        DemoError: The folder holds no CSV file, or a file is malformed or implausible
-            (:func:`check_plausible`).
+        DemoError: The folder holds no CSV file, a file is malformed or implausible
+            (:func:`check_plausible`), or shorter than ``duration_s``.
     """
     files = sorted(Path(folder).glob("*.csv"))
     if not files:
@@ -113,13 +113,19 @@ def load_demo_dir(folder: str | Path, rate_hz: float, duration_s: float) -> Demo
     for f in files:
         cols = read_demo_csv(f)
         ts = cols["time_s"] - cols["time_s"][0]
+        if ts[-1] < duration_s - 0.5 / rate_hz:
+            raise DemoError(
+                f"demo file {f} lasts {ts[-1]:.3f} s, shorter than the task (demos.duration_s "
+                f"= {duration_s:g} s): record the whole task, or lower demos.duration_s to "
+                f"{ts[-1]:.3f} s or less (with the phase times inside it)"
+            )
         wrist = np.stack([cols[f"wrist_{a}"] for a in "xyz"], axis=1)
         quat = np.stack([cols[f"pelvis_{q}"] for q in QUAT], axis=1)
         pelvis = np.c_[cols["pelvis_x"], cols["pelvis_y"], np.unwrap(yaw_from_quat_wxyz(quat))]
         wrist_vel = np.gradient(wrist, ts, axis=0)
         check_plausible(f, cols, wrist_vel)
         pos.append(_resample(t, ts, wrist))
-        vel.append(np.where((t <= ts[-1])[:, None], _resample(t, ts, wrist_vel), 0.0))
+        vel.append(_resample(t, ts, wrist_vel))
         pel.append(_resample(t, ts, pelvis))
     return Demos(t, np.stack(pos), np.stack(vel), np.stack(pel))
 
