@@ -90,6 +90,49 @@ def test_a_value_that_is_not_finite_is_named_with_its_place(tmp_path):
     assert np.isnan(read_npz(tmp_path / "goal.npz", optional)["goal"][0])
 
 
+VALUES = ArtifactSchema(
+    "test.values",
+    1,
+    "demos",
+    (
+        Field("time_s", "float64", ("N",), "s", "sample times", values="increasing"),
+        Field("quat", "float64", ("N", 4), "-", "orientations", values="unit_quaternion"),
+        Field("pick", "int64", ("S",), "-", "picked samples", values="index:N"),
+        Field("goal", "int64", ("S",), "-", "sample or -1", values="index:N|-1"),
+    ),
+)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("time_s", [0.0, 1.0, 1.0], r"'time_s' is not increasing at \(2,\): 1.0"),
+        (
+            "quat",
+            [[1, 0, 0, 0], [0.9, 0, 0, 0], [0, 1, 0, 0]],
+            r"'quat' is not of unit norm at \(1, 0\)",
+        ),
+        ("pick", [0, 3], r"'pick' is outside \[0, N = 3\) at \(1,\): 3"),
+        ("goal", [-2, 0], r"'goal' is outside \[-1, N = 3\) at \(0,\): -2"),
+    ],
+)
+def test_times_quaternions_and_indices_are_checked_where_they_are_read(
+    tmp_path, field, value, message
+):
+    """Issue 53: an artifact's content beyond finiteness: times increase, quaternions have
+    unit norm, indices point inside the arrays they index."""
+    good = {
+        "time_s": np.array([0.0, 0.5, 1.0]),
+        "quat": np.array([[1.0, 0, 0, 0], [0, 0, 0, 1.0], [0, 1.0, 0, 0]]),
+        "pick": np.array([0, 2]),
+        "goal": np.array([-1, 2]),
+    }
+    write_npz(tmp_path / "good.npz", VALUES, good)
+    bad = good | {field: np.array(value, dtype=good[field].dtype)}
+    with pytest.raises(ArtifactError, match=message + r".*stage 'demos'"):
+        write_npz(tmp_path / "bad.npz", VALUES, bad)
+
+
 def test_bytes_flipped_inside_an_npz_are_a_corrupt_artifact(tmp_path):
     path = tmp_path / "flipped.npz"
     write_npz(path, TRAJ, _arrays(200))

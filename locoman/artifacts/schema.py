@@ -30,6 +30,10 @@ class Field:
             entry must hold, with their JSON types (a ``?`` suffix allows null).
         nan_allowed: A float field in which NaN means "none" (a keypoint not seen, no
             goal); every other float field must be finite.
+        values: What the entries must satisfy beyond finiteness: ``increasing`` (strictly,
+            along the first axis: times), ``unit_quaternion`` (rows of norm 1), or
+            ``index:<symbol>`` (integers in [0, symbol), or -1 where the field says so with
+            ``index:<symbol>|-1``).
     """
 
     name: str
@@ -39,6 +43,7 @@ class Field:
     doc: str = ""
     items: tuple[tuple[str, str], ...] = ()
     nan_allowed: bool = False
+    values: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,22 +97,35 @@ class ArtifactSchema:
                         path,
                         f"field {f.name!r} has {want} = {got}, other fields have {sizes[want]}",
                     )
-            self._check_values(f, arr, path)
+        for f in self.fields:
+            self._check_values(f, np.asarray(arrays[f.name]), sizes, path)
 
-    def _check_values(self, f: Field, arr: np.ndarray, path: Any) -> None:
+    def _check_values(self, f: Field, arr: np.ndarray, sizes: dict[str, int], path: Any) -> None:
         """A float field's entries are finite (NaN too where it means "none"): a NaN in a
-        keyframe once surfaced three stages later as a raw ValueError."""
-        if arr.dtype.kind != "f" or arr.size == 0:
+        keyframe once surfaced three stages later as a raw ValueError. Then ``f.values``."""
+        if arr.size == 0:
             return
-        bad = ~np.isfinite(arr)
-        if f.nan_allowed:
-            bad &= ~np.isnan(arr)
+        bad, what = np.zeros(arr.shape, bool), ""
+        if arr.dtype.kind == "f":
+            bad, what = ~np.isfinite(arr), "not finite"
+            if f.nan_allowed:
+                bad &= ~np.isnan(arr)
+        if not bad.any() and f.values == "increasing":
+            bad, what = np.zeros(arr.shape, bool), "not increasing"
+            bad[1:] = np.diff(arr, axis=0) <= 0
+        elif not bad.any() and f.values == "unit_quaternion":
+            # float32 round trips and renormalised integrations stay far inside 1e-6.
+            norm = np.linalg.norm(arr, axis=-1, keepdims=True)
+            bad, what = np.broadcast_to(np.abs(norm - 1.0) > 1e-6, arr.shape), "not of unit norm"
+        elif not bad.any() and f.values.startswith("index:"):
+            symbol, _, none = f.values.removeprefix("index:").partition("|")
+            low = int(none) if none else 0
+            bad = (arr < low) | (arr >= sizes[symbol])
+            what = f"outside [{low}, {symbol} = {sizes[symbol]})"
         if bad.any():
             index = tuple(int(i) for i in np.argwhere(bad)[0])
             where = index if arr.ndim else "()"
-            raise self.error(
-                path, f"field {f.name!r} is not finite at {where}: {arr[index]} ({f.doc})"
-            )
+            raise self.error(path, f"field {f.name!r} is {what} at {where}: {arr[index]} ({f.doc})")
 
     def check_json(self, data: Mapping[str, Any], path: Any) -> None:
         """Check presence and JSON type of every top-level field; no extra keys allowed."""

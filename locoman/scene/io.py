@@ -83,7 +83,14 @@ STATE = ArtifactSchema(
         ),
         Field("body_names", "str", ("nbody",), "-", "MuJoCo body names"),
         Field("body_pos", "float64", ("nbody", 3), "m", "world position of each body"),
-        Field("body_quat_wxyz", "float64", ("nbody", 4), "-", "world orientation of each body"),
+        Field(
+            "body_quat_wxyz",
+            "float64",
+            ("nbody", 4),
+            "-",
+            "world orientation of each body",
+            values="unit_quaternion",
+        ),
     ),
 )
 
