@@ -210,3 +210,28 @@ def test_a_misspelt_override_is_a_message(repo, monkeypatch):
     monkeypatch.chdir(repo)
     with pytest.raises(ConfigError, match=r"box_mas"):
         compose_text(["scenario.box_mas=2.5"])
+
+
+@pytest.mark.parametrize(
+    ("path", "value"),
+    [
+        (("kmp", "n_reference"), 100_000),
+        (("kmp", "gmm_components"), 1000),
+        (("demos", "n_recorded"), 100_000),
+        (("contacts", "pool", "points"), 1_000_000),
+        (("contacts", "registration", "model_points"), 10_000_000),
+        (("retarget", "iterations"), 10**9),
+        (("solve", "solver", "max_iterations"), 10**9),
+    ],
+    ids=lambda p: ".".join(p) if isinstance(p, tuple) else str(p),
+)
+def test_a_size_beyond_what_it_costs_is_refused_with_its_bound(raw, path, value):
+    """issue 53: ``swing_nodes: 100000`` ran two minutes into std::bad_alloc; every size is
+    checked with the configuration, the message giving the value, the bound and why."""
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    node = bad
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    with pytest.raises(ConfigError, match=re.escape(".".join(path)) + r".*above its bound"):
+        validate(bad)

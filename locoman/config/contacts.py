@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from locoman.config.cost import at_most
 from locoman.config.perception import _choice, _range
 
 METHODS = ("registration", "naive")
@@ -50,6 +51,8 @@ class PoolCfg:
             errors.append(("patch_fraction", f"must be in [0.02, 1], got {self.patch_fraction}"))
         if self.layout_weight < 0.0:
             errors.append(("layout_weight", "must be >= 0"))
+        errors += at_most("points", self.points, 4096, "matching is quadratic in the points")
+        errors += at_most("top_n", self.top_n, self.points, "at most every sampled point")
         return errors
 
 
@@ -126,6 +129,11 @@ class RegistrationCfg:
             errors.append(("stretch_prior_m", "must be >= 0"))
         if self.model_points < 100 or self.icp_points < 10:
             errors.append(("model_points", "needs model_points >= 100 and icp_points >= 10"))
+        errors += at_most("model_points", self.model_points, 100_000, "each ICP step queries all")
+        errors += at_most("icp_points", self.icp_points, 20_000, "a KD-tree query per point")
+        errors += at_most("iterations", self.iterations, 1000, "each one runs a whole ICP")
+        errors += at_most("icp_iterations", self.icp_iterations, 1000, "ICP converges in ~30")
+        errors += at_most("symmetry_turns", self.symmetry_turns, 36, "each turn is one more ICP")
         return errors
 
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from locoman.config.cost import at_most
+
 
 @dataclass
 class RetargetCfg:
@@ -108,4 +110,5 @@ class RetargetCfg:
             errors.append(("start_knees_rad", "needs at least one knee angle in [0, 2.5] rad"))
         if self.iterations < 1 or self.tolerance <= 0.0:
             errors.append(("iterations", "needs iterations >= 1 and tolerance > 0"))
+        errors += at_most("iterations", self.iterations, 100_000, "IK converges in hundreds")
         return errors

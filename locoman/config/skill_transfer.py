@@ -10,6 +10,8 @@ from typing import ClassVar
 
 from omegaconf import MISSING
 
+from locoman.config.cost import at_most
+
 
 def _vec(name: str, values: list[float] | None, n: int) -> list[tuple[str, str]]:
     if values is not None and len(values) != n:
@@ -118,6 +120,9 @@ class DemosCfg:
             errors += _vec(name, getattr(self, name), n)
         if min(self.timing_jitter_s, self.path_jitter_m, self.contact_jitter_m) < 0.0:
             errors.append(("timing_jitter_s", "jitters must be >= 0"))
+        samples = self.n_recorded * self.duration_s * self.rate_hz
+        errors += at_most("duration_s", self.duration_s, 600.0, "ten minutes is a long task")
+        errors += at_most("n_recorded", samples, 2e6, "samples in all (n x duration x rate)")
         if not self.grasp_miss_max_m > 0.0:
             errors.append(("grasp_miss_max_m", f"must be > 0 m, got {self.grasp_miss_max_m}"))
         return errors
@@ -228,6 +233,10 @@ class KmpCfg:
             errors.append(("via_point_time_tol_s", "must be a finite time >= 0 s"))
         if not 0.0 < self.covariance_regularization < math.inf:
             errors.append(("covariance_regularization", "must be finite and > 0"))
+        # KMP solves a 9 n_reference square system: 1000 points is a 0.65 GB matrix.
+        errors += at_most("n_reference", self.n_reference, 1000, "KMP's system is 9N x 9N")
+        errors += at_most("gmm_components", self.gmm_components, 100, "EM's cost grows with each")
+        errors += at_most("rate_hz", self.rate_hz, 10_000.0, "the controller runs at 1 kHz")
         if not self.via_point_error_max_m > 0.0:
             errors.append(("via_point_error_max_m", "must be > 0 m"))
         if not self.cases:

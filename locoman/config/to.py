@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from locoman.config.cost import at_most
 from locoman.contact.io import CONTACT_FIELDS
 from locoman.to.assembly import HESSIANS
 from locoman.to.collision import CollisionCfg
@@ -106,6 +107,7 @@ class SolverCfg:
             errors.append(("dt_bounds", "needs [lower, upper] with 0 < lower <= upper [s]"))
         if self.max_iterations < 1 or self.tolerance <= 0.0:
             errors.append(("max_iterations", "needs max_iterations >= 1 and tolerance > 0"))
+        errors += at_most("max_iterations", self.max_iterations, 100_000, "IPOPT needs hundreds")
         if self.constraint_tolerance <= 0.0:
             errors.append(("constraint_tolerance", "must be > 0"))
         if not 0 <= self.print_level <= 12:
