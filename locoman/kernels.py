@@ -6,9 +6,10 @@ AVX2 ones where not. Those round differently in the last bits, and the differenc
 through the pipeline (a scene's initial state, then every stage after it): a machine with
 AVX-512 wrote other artifacts than one without, from the same parameters.
 :func:`pin_kernels` sets, before those libraries load, the variables that keep them at their
-AVX2 kernels on every x86-64 CPU with AVX2. It runs when ``locoman`` is imported: a stage
-imports ``locoman`` before NumPy (``tests/test_kernels.py`` checks). A variable the user set
-is left as it is.
+AVX2 kernels on every x86-64 CPU with AVX2. Importing ``locoman`` sets nothing: each entry
+point that writes artifacts calls it first (every stage, before its other imports;
+``tests/test_kernels.py`` checks), and the grid launcher passes the pins to its jobs. A
+variable the user set is left as it is.
 """
 
 from __future__ import annotations

@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
+import dataclasses
 import inspect
 import json
 import os
 import re
 import shutil
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from locoman.artifacts.folder import staging_folder, swap_in
 from locoman.errors import ConfigError, LocomanError
 
 DATA_DIR = Path("data")
@@ -32,64 +32,55 @@ def valid_scenario_name(name: str) -> bool:
     return _SCENARIO_NAME.fullmatch(name) is not None
 
 
-# While :func:`run_stage` runs a stage: final output folder -> the staging folder the stage
-# writes into instead (None outside run_stage: stage_dir is then the folder itself).
-_staging: dict[Path, Path] | None = None
-
-
-def stage_dir(scenario: str, stage: str) -> Path:
-    """``data/<scenario>/<stage>/``, created if needed; inside :func:`run_stage`, its
-    staging folder, which becomes the output folder only when the stage succeeds.
+def stage_path(scenario: str, stage: str) -> Path:
+    """``data/<scenario>/<stage>/``, a stage's output folder (not created).
 
     Raises:
         ConfigError: If ``scenario`` is not a valid name (``../x`` would write outside
-            data/); nothing is created then.
+            data/).
     """
     if not valid_scenario_name(scenario):
         raise ConfigError(f"scenario {scenario!r}: {SCENARIO_NAME_RULE}")
-    path = DATA_DIR / scenario / stage
-    if _staging is None:
-        path.mkdir(parents=True, exist_ok=True)
-        return path
-    if path not in _staging:
-        _remove_stale_staging(path.parent, stage)
-        # A folder of this run's own: two runs of a stage at once cannot mix their files.
-        staging = path.parent / f".{stage}.staging.{os.getpid()}"
-        shutil.rmtree(staging, ignore_errors=True)
-        staging.mkdir(parents=True)
-        _staging[path] = staging
-    return _staging[path]
+    return DATA_DIR / scenario / stage
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+@dataclasses.dataclass
+class StageOutputs:
+    """Where one run of a stage writes: for each output folder it asks for, a staging folder
+    of this run's own, swapped in whole when the stage succeeds
+    (:mod:`locoman.artifacts.folder`).
 
+    Attributes:
+        staged: Output folder -> its staging folder, in the order they were asked for.
+    """
 
-def _remove_stale_staging(parent: Path, stage: str) -> None:
-    """Remove the staging folders of ``stage`` whose run is gone (a killed run's)."""
-    for folder in parent.glob(f".{stage}.staging*"):
-        pid = folder.name.rsplit(".", 1)[-1]
-        if not pid.isdigit() or not _alive(int(pid)):
-            shutil.rmtree(folder, ignore_errors=True)
+    staged: dict[Path, Path] = dataclasses.field(default_factory=dict)
 
+    def folder(self, scenario: str, stage: str) -> Path:
+        """The folder to write ``data/<scenario>/<stage>/``'s new content into.
 
-@contextlib.contextmanager
-def _locked(final: Path) -> Iterator[None]:
-    """Hold ``final``'s lock (a file beside it): a second run of the stage committing at
-    the same time waits for this one to finish moving its files in."""
-    final.parent.mkdir(parents=True, exist_ok=True)
-    with open(final.parent / f".{final.name}.lock", "w") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+        Raises:
+            ConfigError: If ``scenario`` is not a valid name; nothing is created then.
+        """
+        final = stage_path(scenario, stage)
+        if final not in self.staged:
+            self.staged[final] = staging_folder(final)
+        return self.staged[final]
+
+    def commit(self) -> None:
+        """Swap every staging folder in."""
+        for final, staging in self.staged.items():
+            swap_in(staging, final)
+
+    def discard(self) -> None:
+        """Drop every staging folder; the outputs stay as they were."""
+        for staging in self.staged.values():
+            shutil.rmtree(staging, ignore_errors=True)
+
+    def final(self, path: Path) -> Path:
+        """``path`` where it will be once committed: a staging folder is named by its
+        output folder."""
+        return next((f for f, s in self.staged.items() if s == path), path)
 
 
 def _files(root: Path) -> set[Path]:
@@ -99,22 +90,6 @@ def _files(root: Path) -> set[Path]:
         for p in root.rglob("*")
         if p.is_file() and not any(part.startswith(".") for part in p.relative_to(root).parts)
     }
-
-
-def commit_staged(final: Path, staging: Path) -> None:
-    """Make ``final`` hold exactly the files of ``staging``: move each in (a rename per
-    file), remove the ones this run did not write, drop the staging folder."""
-    final.mkdir(parents=True, exist_ok=True)
-    new = _files(staging)
-    for rel in sorted(new):
-        (final / rel).parent.mkdir(parents=True, exist_ok=True)
-        os.replace(staging / rel, final / rel)
-    for rel in _files(final) - new:
-        (final / rel).unlink()
-    for folder in sorted((p for p in final.rglob("*") if p.is_dir()), reverse=True):
-        if not any(folder.iterdir()):
-            folder.rmdir()
-    shutil.rmtree(staging, ignore_errors=True)
 
 
 def verdict(metrics: dict) -> str:
@@ -158,44 +133,40 @@ def summary_line(stage: str, argv: list[str], out: Path) -> str:
 
 
 def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
-    """Run a stage: ``main`` writes into the folders :func:`stage_dir` gives and returns its
-    output folder. The outputs appear whole or not at all: written into a staging folder,
-    moved into place only when ``main`` returns; a failure leaves the previous outputs as
-    they were. Each run stages into a folder of its own and commits under the output
-    folder's lock, so two runs at once leave one's outputs whole. Bad arguments or a
-    :class:`LocomanError` end it with a message and exit 2; success ends with
-    :func:`summary_line`."""
-    global _staging
+    """Run a stage: ``main(outputs, *argv)`` writes into the folders
+    :meth:`StageOutputs.folder` gives and returns its output folder. The outputs appear
+    whole or not at all: each output folder is swapped in whole only when ``main`` returns;
+    a failure leaves the previous outputs as they were, and two runs at once leave one's
+    outputs whole. Bad arguments or a :class:`LocomanError` end it with a message and exit
+    2; success ends with :func:`summary_line`.
+
+    A stage's entry point, it sets the process's BLAS / OpenMP threads to one: a threaded
+    reduction sums in an order that depends on the machine's core count, so outputs would
+    differ between machines. The variables reach the libraries loaded later (CasADi's
+    OpenBLAS, with MUMPS), the limit those loaded.
+    """
+    outputs = StageOutputs()
     try:
-        inspect.signature(main).bind(*argv)
+        inspect.signature(main).bind(outputs, *argv)
     except TypeError as exc:
         doc = (sys.modules[main.__module__].__doc__ or "").strip()
         print(f"{doc}\n\nbad arguments {argv}: {exc}", file=sys.stderr)
         sys.exit(2)
-    _staging = {}
-    done = False
-    # One BLAS / OpenMP thread: a threaded reduction sums in an order that depends on the
-    # machine's core count, so outputs would differ between machines. The variable reaches
-    # the libraries loaded later (CasADi's OpenBLAS, with MUMPS), the limit those loaded.
     os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = "1"
+    done = False
     try:
         with threadpool_limits(limits=1):
-            out = Path(main(*argv))
+            out = Path(main(outputs, *argv))
         done = True
     except LocomanError as exc:
         print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)
         print("locoman: the previous outputs are left as they were", file=sys.stderr)
     finally:
-        staged, _staging = _staging, None
         if not done:  # a message above, or an exception on its way up with its traceback
-            for staging in staged.values():
-                shutil.rmtree(staging, ignore_errors=True)
+            outputs.discard()
     if not done:
         sys.exit(2)
-    for final, staging in staged.items():
-        with _locked(final):
-            commit_staged(final, staging)
-        if out == staging:
-            out = final
+    out = outputs.final(out)
+    outputs.commit()
     stage = Path(inspect.getsourcefile(main) or "stage").stem
     print(summary_line(stage, argv, out), flush=True)

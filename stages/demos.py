@@ -6,12 +6,13 @@ writes data/<demos.scenario>/demos/)
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
-import locoman  # noqa: F401  (first: it pins the CPU kernels before NumPy loads)
-
-# isort: split
 import numpy as np
 
 from locoman.artifacts import write_json_atomic, write_npz
@@ -20,16 +21,16 @@ from locoman.kmp.demos import task_points
 from locoman.kmp.io import DEMOS
 from locoman.kmp.sources import collect_demos
 from locoman.scene.io import load_objects, load_plan
-from locoman.stage import DATA_DIR, run_stage, stage_dir
+from locoman.stage import DATA_DIR, StageOutputs, run_stage
 
 
-def main() -> Path:
+def main(outputs: StageOutputs) -> Path:
     cfg = load_params()
     d = cfg.demos
     scene = DATA_DIR / d.scenario / "scene"
     _, task = task_points(load_objects(scene), load_plan(scene), d.grasp_height)
     demos, selected, miss = collect_demos(d, task, cfg.seed)
-    out = stage_dir(d.scenario, "demos")
+    out = outputs.folder(d.scenario, "demos")
     write_npz(
         out / "demos.npz",
         DEMOS,

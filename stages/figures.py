@@ -7,20 +7,24 @@ skipping those up to date; writes data/<scenario>/figures/)
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
 from locoman.config import load_params
 from locoman.errors import ConfigError
 from locoman.grid.report import figures_scenario
-from locoman.stage import run_stage, stage_dir
+from locoman.stage import StageOutputs, run_stage
 
 
-def main(scenario: str) -> Path:
+def main(outputs: StageOutputs, scenario: str) -> Path:
     cfg = load_params()
     if scenario not in cfg.figures.scenarios:
         raise ConfigError(f"{scenario!r} is not in figures.scenarios {cfg.figures.scenarios}")
-    out = stage_dir(scenario, "figures")
+    out = outputs.folder(scenario, "figures")
     figures_scenario(cfg, scenario, out)
     return out
 

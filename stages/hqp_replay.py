@@ -6,12 +6,13 @@ kmp_fit/, writes data/<demos.scenario>/hqp_replay/)
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
-import locoman  # noqa: F401  (first: it pins the CPU kernels before NumPy loads)
-
-# isort: split
 import numpy as np
 
 from locoman.artifacts import read_npz, write_metrics, write_text_atomic
@@ -24,10 +25,10 @@ from locoman.kmp.demos import task_points
 from locoman.kmp.io import REFERENCE
 from locoman.progress import progress
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
-from locoman.stage import DATA_DIR, run_stage, stage_dir
+from locoman.stage import DATA_DIR, StageOutputs, run_stage
 
 
-def main() -> Path:
+def main(outputs: StageOutputs) -> Path:
     cfg = load_params()
     d, h = cfg.demos, cfg.hqp
     root = DATA_DIR / d.scenario
@@ -36,7 +37,7 @@ def main() -> Path:
     obj, _ = task_points(load_objects(scene), plan, d.grasp_height)
     target = next(s["target"]["pos_m"] for s in plan["subtasks"] if s["target"] is not None)
     home = load_state(scene)["qpos"]
-    out = stage_dir(d.scenario, "hqp_replay")
+    out = outputs.folder(d.scenario, "hqp_replay")
     metrics = {}
     for name in progress(cfg.kmp.cases, "hqp_replay cases"):
         ref = read_npz(root / "kmp_fit" / f"reference_{name}.npz", REFERENCE)

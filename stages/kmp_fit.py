@@ -6,12 +6,13 @@ writes data/<demos.scenario>/kmp_fit/)
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
-import locoman  # noqa: F401  (first: it pins the CPU kernels before NumPy loads)
-
-# isort: split
 import numpy as np
 
 from locoman.artifacts import read_npz, write_figure, write_metrics, write_npz
@@ -22,12 +23,12 @@ from locoman.kmp.figures import reference_figure
 from locoman.kmp.fit import fit_case, kmp_vs_gmr, predict_seconds, reference_of, via_points
 from locoman.kmp.io import DEMOS, GMR, REFERENCE
 from locoman.scene.io import load_objects, load_plan
-from locoman.stage import DATA_DIR, run_stage, stage_dir
+from locoman.stage import DATA_DIR, StageOutputs, run_stage
 
 PLOT_RATE_HZ = 20.0  # the dvc plots CSV: Vega inlines every row of every curve
 
 
-def main() -> Path:
+def main(outputs: StageOutputs) -> Path:
     cfg = load_params()
     d, k = cfg.demos, cfg.kmp
     root = DATA_DIR / d.scenario
@@ -36,7 +37,7 @@ def main() -> Path:
     demos = Demos(raw["time_s"], raw["wrist_pos"], raw["wrist_vel"], raw["pelvis"])
     demos = demos.subset(raw["selected"])
     duration = float(demos.time_s[-1])
-    out = stage_dir(d.scenario, "kmp_fit")
+    out = outputs.folder(d.scenario, "kmp_fit")
 
     ref, gmr_s = reference_of(demos, k, cfg.seed)
     write_npz(out / "gmr.npz", GMR, {"s": ref.s, "mean": ref.mean, "cov": ref.cov})

@@ -6,17 +6,21 @@ writes data/<scenario>/masks/)
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
 from locoman.config import load_params
 from locoman.perception.masks import masks_scenario
-from locoman.stage import DATA_DIR, run_stage, stage_dir
+from locoman.stage import DATA_DIR, StageOutputs, run_stage
 
 
-def main(scenario: str) -> Path:
+def main(outputs: StageOutputs, scenario: str) -> Path:
     cfg = load_params()
-    out = stage_dir(scenario, "masks")
+    out = outputs.folder(scenario, "masks")
     masks_scenario(
         scenario,
         DATA_DIR / scenario / "generate",

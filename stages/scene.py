@@ -5,6 +5,10 @@ Usage: python stages/scene.py <scenario>   (reads params.yaml, writes data/<scen
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
@@ -15,15 +19,15 @@ from locoman.scene.builder import build_scene
 from locoman.scene.checks import check_scene
 from locoman.scene.io import write_scene
 from locoman.scene.render import render_camera
-from locoman.stage import run_stage, stage_dir
+from locoman.stage import StageOutputs, run_stage
 
 
-def main(scenario: str) -> Path:
+def main(outputs: StageOutputs, scenario: str) -> Path:
     cfg = load_params()
     sc = cfg.scenarios.get(scenario)
     if sc is None:
         raise ConfigError(f"unknown scenario {scenario!r}; known: {sorted(cfg.scenarios)}")
-    out = stage_dir(scenario, "scene")
+    out = outputs.folder(scenario, "scene")
     scene = build_scene(scenario, sc, (cfg.scene.render_width, cfg.scene.render_height))
     model, qpos = write_scene(out, scene)
     report = check_scene(

@@ -6,17 +6,21 @@ contacts/ and retarget/, writes data/<scenario>/solve/)
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
 from locoman.config import load_params
-from locoman.stage import DATA_DIR, run_stage, stage_dir
+from locoman.stage import DATA_DIR, StageOutputs, run_stage
 from locoman.to.pipeline import solve_scenario
 
 
-def main(scenario: str) -> Path:
+def main(outputs: StageOutputs, scenario: str) -> Path:
     cfg = load_params()
-    out = stage_dir(scenario, "solve")
+    out = outputs.folder(scenario, "solve")
     root = DATA_DIR / scenario
     solve_scenario(
         root / "scene",

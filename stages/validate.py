@@ -1,6 +1,6 @@
 """Stage `validate`: the whole composed configuration, checked before any other stage runs.
 
-Usage: python stages/validate.py   (reads params.yaml, writes data/params/validated.json)
+Usage: python stages/validate.py   (reads params.yaml, writes data/params/validate/)
 
 DVC reruns a stage only when one of its own parameters changes, so a misspelt key
 (`dvc exp run -S +scenario.box_mas=5`) reached no stage's validation and the experiment
@@ -11,21 +11,23 @@ its path, and a good change reruns only what depends on it.
 
 from __future__ import annotations
 
+from locoman.kernels import pin_kernels
+
+pin_kernels()  # first: NumPy, OpenBLAS and OpenCV choose their CPU kernels when they load
+
 import sys
 from pathlib import Path
 
 from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
-from locoman.stage import DATA_DIR, run_stage
-
-CHECKED = DATA_DIR / "params" / "validated.json"
+from locoman.stage import StageOutputs, run_stage
 
 
-def main() -> Path:
+def main(outputs: StageOutputs) -> Path:
     load_params()  # raises ConfigError naming the key
-    CHECKED.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(CHECKED, {"params.yaml": "valid"})
-    return CHECKED.parent
+    out = outputs.folder("params", "validate")
+    write_json_atomic(out / "validated.json", {"params.yaml": "valid"})
+    return out
 
 
 if __name__ == "__main__":

@@ -10,6 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from locoman.kernels import pin_kernels
+
+# As every stage: the kernels the artifacts were made with, before a test loads NumPy.
+pin_kernels()
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 

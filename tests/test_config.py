@@ -12,7 +12,7 @@ import yaml
 from locoman.config import validate
 from locoman.config.compose import compose_text
 from locoman.errors import ConfigError
-from locoman.stage import stage_dir
+from locoman.stage import StageOutputs
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +157,7 @@ def test_a_scenario_name_that_is_a_path_is_refused(raw, name, tmp_path, monkeypa
         validate(bad)
     monkeypatch.chdir(tmp_path)
     with pytest.raises(ConfigError, match="scenario name is a folder"):
-        stage_dir(name, "scene")
+        StageOutputs().folder(name, "scene")
     assert list(tmp_path.rglob("*")) == []
 
 

@@ -52,9 +52,10 @@ def test_cpu_flags_read_proc_cpuinfo(tmp_path):
 @pytest.mark.skipif(
     not kernel_pins("x86_64", cpu_flags()), reason="this CPU has no AVX2: nothing is pinned"
 )
-def test_importing_locoman_first_loads_openblas_with_the_pinned_kernel():
+def test_pinning_first_loads_openblas_with_the_pinned_kernel():
     code = (
-        "import locoman, numpy, scipy.linalg, json, os\n"
+        "from locoman.kernels import pin_kernels\npin_kernels()\n"
+        "import numpy, scipy.linalg, json, os\n"
         "from threadpoolctl import threadpool_info\n"
         "print(json.dumps([os.environ.get('OPENBLAS_CORETYPE'),"
         " [i.get('architecture') for i in threadpool_info() if i['internal_api'] == 'openblas']]))"
@@ -69,20 +70,34 @@ def test_importing_locoman_first_loads_openblas_with_the_pinned_kernel():
     assert len(architectures) >= 2 and set(architectures) == {"Haswell"}  # NumPy's, SciPy's
 
 
+def test_importing_locoman_changes_no_process_wide_setting():
+    """issue 49: importing the library (and building the NLP) leaves the process as it was;
+    only an entry point pins."""
+    # The libraries' own imports set some (scikit-learn KMP_DUPLICATE_LIB_OK, CasADi
+    # LD_LIBRARY_PATH): they are loaded first, then locoman must add nothing.
+    code = (
+        "import os, json\n"
+        "import numpy, scipy, sklearn, casadi, pinocchio, mujoco, cv2, placo, hydra\n"
+        "before = dict(os.environ)\n"
+        "import locoman, locoman.stage, locoman.to.optimizer, locoman.grid.launch\n"
+        "import locoman.sim.evaluate, locoman.contact.semantic, locoman.kmp.fit\n"
+        "import locoman.hqp.replay, locoman.retarget\n"
+        "print(json.dumps(sorted(set(os.environ.items()) ^ set(before.items()))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout) == []
+
+
 @pytest.mark.parametrize("script", sorted((REPO / "stages").glob("*.py")), ids=lambda p: p.name)
-def test_every_stage_imports_locoman_before_a_numerical_library(script):
-    """A stage that loaded NumPy first would run with the CPU's own kernels."""
-    first: dict[str, int] = {}
-    for node in ast.parse(script.read_text()).body:
-        names = []
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            names = [node.module]
-        for name in names:
-            top = name.split(".")[0]
-            key = "locoman" if top == "locoman" else top if top in NUMERICAL else None
-            if key:
-                first.setdefault(key, node.lineno)
-    assert "locoman" in first
-    assert all(first["locoman"] < line for key, line in first.items() if key != "locoman"), first
+def test_every_stage_pins_the_kernels_before_a_numerical_library(script):
+    """A stage that loaded NumPy first would run with the CPU's own kernels: the first
+    statement after the module's docstring and ``__future__`` import is the pin."""
+    body = [
+        node
+        for node in ast.parse(script.read_text()).body
+        if not (isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant))
+        and not (isinstance(node, ast.ImportFrom) and node.module == "__future__")
+    ]
+    first, call = body[0], body[1]
+    assert isinstance(first, ast.ImportFrom) and first.module == "locoman.kernels", script
+    assert isinstance(call, ast.Expr) and ast.unparse(call) == "pin_kernels()", script

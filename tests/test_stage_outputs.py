@@ -24,8 +24,8 @@ def data(tmp_path, monkeypatch):
 
 
 def test_a_failed_stage_leaves_the_previous_outputs_as_they_were(data, capsys):
-    def main(scenario):
-        out = stage.stage_dir(scenario, "solve")
+    def main(outputs, scenario):
+        out = outputs.folder(scenario, "solve")
         (out / "trajectory.npz").write_text("half of a new trajectory")
         raise ArtifactError("the contacts of subtask 2 lack left_hand")
 
@@ -38,8 +38,8 @@ def test_a_failed_stage_leaves_the_previous_outputs_as_they_were(data, capsys):
 
 
 def test_a_crash_leaves_the_previous_outputs_too(data):
-    def main(scenario):
-        (stage.stage_dir(scenario, "solve") / "metrics.json").write_text("{")
+    def main(outputs, scenario):
+        (outputs.folder(scenario, "solve") / "metrics.json").write_text("{")
         raise KeyError("a bug")
 
     with pytest.raises(KeyError):
@@ -48,8 +48,8 @@ def test_a_crash_leaves_the_previous_outputs_too(data):
 
 
 def test_a_stage_that_succeeds_leaves_exactly_its_new_outputs(data, capsys):
-    def main(scenario):
-        out = stage.stage_dir(scenario, "solve")
+    def main(outputs, scenario):
+        out = outputs.folder(scenario, "solve")
         (out / "plots").mkdir()
         (out / "plots" / "penetration.csv").write_text("node,m\n")
         (out / "metrics.json").write_text('{"success": false, "status": "Maximum_Iterations"}')
@@ -102,10 +102,10 @@ def test_a_stage_runs_on_one_blas_thread_whatever_the_machine(data, monkeypatch)
     monkeypatch.setenv("OMP_NUM_THREADS", "4")
     seen = {}
 
-    def main(scenario):
+    def main(outputs, scenario):
         seen["threads"] = {i["internal_api"]: i["num_threads"] for i in threadpool_info()}
         seen["env"] = (os.environ["OPENBLAS_NUM_THREADS"], os.environ["OMP_NUM_THREADS"])
-        return stage.stage_dir(scenario, "solve")
+        return outputs.folder(scenario, "solve")
 
     stage.run_stage(main, ["demo"])
     assert seen["env"] == ("1", "1")
@@ -116,8 +116,8 @@ RACER = """
 import sys, time
 from locoman import stage
 
-def main(scenario):
-    out = stage.stage_dir(scenario, "contacts")
+def main(outputs, scenario):
+    out = outputs.folder(scenario, "contacts")
     for i in range(9):
         (out / f"subtask_{i}.npz").write_text(sys.argv[1] * 1000)
         time.sleep(0.05)
@@ -148,4 +148,4 @@ def test_two_runs_of_a_stage_at_once_leave_one_whole_output(tmp_path):
     assert files == ["metrics.json"] + [f"subtask_{i}.npz" for i in range(9)]
     tags = {(final / f"subtask_{i}.npz").read_text()[0] for i in range(9)}
     assert len(tags) == 1  # every file from the same run
-    assert not list(final.parent.glob(".contacts.staging*"))
+    assert not list(final.parent.glob(".contacts.*.*"))  # no staging, no old folder left

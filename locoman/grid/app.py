@@ -5,7 +5,8 @@ cells with Hydra's multirun; ``hydra/launcher=`` picks where they run (``joblib`
 default, locally in parallel; ``submitit_slurm`` on a SLURM cluster; ``submitit_local``
 through submitit on this machine). Config: ``locoman/grid/conf/grid.yaml``. Normally
 started by ``python -m locoman.grid`` (:mod:`locoman.grid.launch`), which builds the sweep
-from ``params.yaml``.
+from ``params.yaml`` and pins the CPU kernels in the jobs' environment
+(:mod:`locoman.kernels`; run directly, the app uses the CPU's own).
 """
 
 from __future__ import annotations

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from locoman.artifacts import write_json_atomic
+from locoman.artifacts.folder import staging_folder, swap_in
 from locoman.config.schema import RootCfg, ScenarioCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.errors import ArtifactError, ConfigError
@@ -62,6 +63,8 @@ SOLVE_MODULES = (
     "locoman.scene.io",
     "locoman.to.pipeline",
     "locoman.grid.runs",
+    # The CPU kernels the launcher pins in the cells' environment decide the last bits.
+    "locoman.kernels",
 )
 EVALUATE_MODULES = ("locoman.sim.pipeline",)
 # What the record keeps from a solve when only the evaluation runs again.
@@ -316,13 +319,15 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     previous = read_record(final)
     if previous is not None and previous.get("key") == key:
         return {**previous, "skipped": True}
-    staging = final.with_name(f".{final.name}.staging")
-    shutil.rmtree(staging, ignore_errors=True)
+    staging = staging_folder(final)
     reuse = _solved(previous, solved, final)
     if reuse:  # the scene, the solve and its log as they are; a new evaluation
-        shutil.copytree(final, staging, ignore=shutil.ignore_patterns(RECORD_FILE, "evaluate"))
-    else:
-        staging.mkdir(parents=True)
+        shutil.copytree(
+            final,
+            staging,
+            ignore=shutil.ignore_patterns(RECORD_FILE, "evaluate"),
+            dirs_exist_ok=True,
+        )
     tic = time.perf_counter()
     with output_to(staging / LOG_FILE, append=reuse):
         try:
@@ -353,12 +358,7 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
         "key": key,
     }
     write_json_atomic(staging / RECORD_FILE, record)
-    # One rename of the whole folder, not stage.commit_staged's file-by-file moves: a kill
-    # in between leaves the old cell or none, never a new record beside old files.
-    old = final.with_name(f".{final.name}.old")
-    shutil.rmtree(old, ignore_errors=True)
-    if final.exists():
-        final.rename(old)
-    staging.rename(final)
-    shutil.rmtree(old, ignore_errors=True)
+    # The folder swapped in whole, as a stage's: a kill leaves the old cell, never a new
+    # record beside old files.
+    swap_in(staging, final)
     return {**record, "skipped": False}

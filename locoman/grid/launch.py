@@ -14,6 +14,7 @@ a cluster, finishes where it left off.
 from __future__ import annotations
 
 import dataclasses
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +27,7 @@ from locoman.config.schema import RootCfg
 from locoman.errors import ConfigError, LocomanError
 from locoman.grid.cell import CellCfg
 from locoman.grid.runs import FIGURE_RUNS
+from locoman.kernels import pin_kernels
 
 
 def cells(cfg: RootCfg, scenario: str, figure: str) -> list[CellCfg]:
@@ -135,7 +137,11 @@ def launch(
     if Path(params_file) != Path("params.yaml"):
         command.append(f"params_file={params_file}")
     print("[grid] " + " ".join(command[1:]), flush=True)
-    if subprocess.run(command).returncode != 0:
+    # The cells' processes load NumPy first thing: the kernels are pinned in their
+    # environment, as a stage pins its own (locoman/kernels.py).
+    env = dict(os.environ)
+    pin_kernels(env)
+    if subprocess.run(command, env=env).returncode != 0:
         raise LocomanError(
             f"the {figure} grid of {scenario} stopped (the Hydra multirun above failed; a "
             "cell's own failure is recorded and does not stop it)"

@@ -424,7 +424,6 @@ class BlockNLP:
         self._options = dict(ipopt)
         self.solver = self.ipopt(ipopt)
         self._warm_solver: ca.Function | None = None
-        _single_threaded_blas()
         self.build_time_s = time.perf_counter() - tic
 
     def _virtual(self, X: ca.MX, defined: list[Block], derivatives, params) -> tuple:
@@ -512,7 +511,7 @@ class BlockNLP:
             options = self._options | (WARM_START_OPTIONS if warm is not None else {})
             solver = self.ipopt(options | limits)
         tic = time.perf_counter()
-        with _heap_kept():
+        with _heap_kept(), _single_threaded_blas():
             out = solver(**args)
         elapsed = time.perf_counter() - tic
         stats = solver.stats()
@@ -567,14 +566,24 @@ def _scattered(
     return ca.MX(pattern, values)
 
 
-def _single_threaded_blas() -> None:
-    """Run IPOPT's MUMPS on one thread of CasADi's OpenBLAS. With one per core, parallel
-    sums change the last bits of each factorisation and the iterates follow: on ``tiny``
-    2 threads took 808 iterations where 1 took 225, to the same optimum. One thread makes
-    the solve independent of the machine's core count, and on 2 cores it is faster."""
+@contextlib.contextmanager
+def _single_threaded_blas() -> Iterator[None]:
+    """Run IPOPT's MUMPS on one thread of CasADi's OpenBLAS while IPOPT runs; the process's
+    setting is restored after. With one per core, parallel sums change the last bits of
+    each factorisation and the iterates follow: on ``tiny`` 2 threads took 808 iterations
+    where 1 took 225, to the same optimum. One thread makes the solve independent of the
+    machine's core count, and on 2 cores it is faster."""
     library = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
-    if library.is_file():
-        ctypes.CDLL(str(library)).openblas_set_num_threads(1)
+    if not library.is_file():
+        yield
+        return
+    blas = ctypes.CDLL(str(library))
+    threads = blas.openblas_get_num_threads()
+    blas.openblas_set_num_threads(1)
+    try:
+        yield
+    finally:
+        blas.openblas_set_num_threads(threads)
 
 
 # glibc's mallopt parameters and their defaults.
