@@ -12,6 +12,7 @@ from locoman.sim.evaluate import (
     nonholonomic_tangent,
     nonholonomic_violation,
     object_at_rest,
+    support_slip,
     support_under,
 )
 from locoman.sim.pipeline import all_finite, held_lifts, pose_matrix
@@ -177,3 +178,31 @@ def test_7a_is_held_on_the_rate_where_a_chassis_starts_to_roll():
     traj["object_active"][:] = False
     assert nonholonomic_violation(traj) == 0.0
     assert nonholonomic_tangent(traj) == 0.0
+
+
+def _resting(yaws: list[float], kind: str = "surface") -> dict[str, np.ndarray]:
+    """A box (object 0) resting on a support at every node, its origin still, turning by
+    ``yaws`` [rad]; a still carrier (object 1) under it for ``on_object``."""
+    n = len(yaws)
+    q = np.zeros((n, 2, 6))
+    q[:, 0, 2] = 0.55 if kind == "on_object" else 0.0
+    q[:, 0, 5] = yaws
+    return {
+        "object_names": np.array(["box", "trolley"]),
+        "object_q": q,
+        "support_kind": np.array([[kind, "none"]] * n),
+        "support_base": np.array([[1 if kind == "on_object" else -1, -1]] * n),
+        "object_active": np.ones((n, 2), bool),
+    }
+
+
+@pytest.mark.parametrize("kind", ["surface", "on_object"])
+def test_a_box_turning_on_its_support_slips_at_its_corners(kind):
+    """S1's box spun on the floor, its origin still: the origin-based check saw nothing.
+    The corners of a 0.4 x 0.4 m bottom turned by 0.1 rad move 2 r sin(0.05) = 28 mm."""
+    half = [np.r_[0.2, 0.2], np.r_[0.3, 0.2]]
+    key = "box_on_surface" if kind == "surface" else "box_on_trolley"
+    still = support_slip(_resting([0.3] * 4, kind), half)
+    assert still == {key: pytest.approx(0.0, abs=1e-12)}
+    turned = support_slip(_resting([0.3, 0.3, 0.35, 0.4], kind), half)
+    assert turned[key] == pytest.approx(2 * np.hypot(0.2, 0.2) * np.sin(0.05), rel=1e-9)

@@ -18,7 +18,16 @@ import pytest
 from locoman.to.dynamics import rigid_body_momentum, wrench_sum
 from locoman.to.kinematics import euler_rates_to_world, rpy_matrix
 from locoman.to.layout import ObjectModel
-from locoman.to.supports import BodyFrame, Chassis, OnObject, Support, SupportContact, Surface
+from locoman.to.supports import (
+    BodyFrame,
+    Chassis,
+    OnObject,
+    Support,
+    SupportContact,
+    Surface,
+    facing_same_way,
+    turn_about_normal,
+)
 
 DT = 0.05  # [s]
 G = 9.81  # [m/s^2]
@@ -240,3 +249,31 @@ def test_a_box_on_a_box_on_the_floor_balances_both_weights():
     np.testing.assert_allclose(w[:, 1, 2], upper_model.mass * G, rtol=1e-6)
     np.testing.assert_allclose(w[:, :, :2], 0.0, atol=1e-6)
     assert np.abs(out["v"]).max() < 1e-8
+
+
+def test_a_box_on_the_floor_does_not_turn_under_a_twisting_push():
+    """Paper A's (2b) holds the patch's point, not the patch: S1's box spun 0.34 rad per
+    node on the floor. A 10 N push 15 cm off its centre (1.5 N m about the normal, within
+    its friction) leaves it where it was set, turned by nothing."""
+    push = Body(BOX, Surface(), np.zeros(6), force=np.r_[0.0, 10.0, 0.0])
+    push.force_point = np.r_[0.15, 0.0, 0.0]
+    out = solve_toy([push], nodes=6)
+    assert out["status"] == "Solve_Succeeded"
+    np.testing.assert_allclose(out["q"][:, 0], 0.0, atol=1e-8)
+    w = out["w"][:-1, 0]
+    np.testing.assert_allclose(w[:, 5], -1.5, rtol=1e-6)  # the floor's moment holds it
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, -84.0, 90.0, 179.0])
+def test_the_turn_about_the_normal_is_seen_at_every_yaw(yaw_deg):
+    """(5b) was R[0, 1] - R_before[0, 1], the difference of two yaws' sines: flat at +-90
+    deg, where S2's box turned from -84 to -96 deg on the trolley with it satisfied."""
+    before = rpy_matrix(ca.DM([0.0, 0.0, np.radians(yaw_deg)]))
+    turned = rpy_matrix(ca.DM([0.0, 0.0, np.radians(yaw_deg - 12.0)]))
+    assert float(turn_about_normal(before, before)) == pytest.approx(0.0, abs=1e-12)
+    assert float(turn_about_normal(before, turned)) == pytest.approx(-np.sin(np.radians(12.0)))
+    # A half turn has no sine: the cosine's row (>= 0) refuses it (a stance foot flipped).
+    flipped = rpy_matrix(ca.DM([0.0, 0.0, np.radians(yaw_deg + 180.0)]))
+    assert float(turn_about_normal(before, flipped)) == pytest.approx(0.0, abs=1e-12)
+    assert float(facing_same_way(before, before)) == pytest.approx(1.0)
+    assert float(facing_same_way(before, flipped)) == pytest.approx(-1.0)

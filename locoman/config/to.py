@@ -182,7 +182,8 @@ class EvaluateCfg:
         rest_tilt_tol_rad: ... and its roll and pitch at most this [rad].
         nonholonomic_tol_mps: Largest lateral velocity of a chassis's rear wheels, (7a)
             over each step as the TO holds it [m/s].
-        rider_slip_tol_m: Largest slide of an object on the object carrying it [m].
+        rider_slip_tol_m: Largest slide of a corner of an object's bottom on what supports
+            it, a fixed surface or another object, from where it was set down [m].
         lift_tol_m: An object both hands hold at the end is at least this far above the
             support it was taken from (``<object>_lift_m``; S1: the basket) [m].
         filmstrip_frames: Frames in the PNG filmstrip.

@@ -342,37 +342,70 @@ def nonholonomic_tangent(traj: dict[str, np.ndarray]) -> float:
     return worst
 
 
-def rider_slip(traj: dict[str, np.ndarray]) -> dict[str, float]:
-    """For each object that rests on another: the largest distance [m] its origin moves in
-    the carrier's frame while it rests there (the box on a pushed trolley)."""
+def support_slip(traj: dict[str, np.ndarray], half_extents: list[np.ndarray]) -> dict[str, float]:
+    """For each object while it rests on a support: the farthest [m] a corner of its bottom
+    moves along the support (horizontally, in the support's frame: the world's for a fixed
+    surface, the carrier's for an object on another) from where it was when it was set down;
+    settling onto it is not slip. Corners, not the origin: a box that
+    turns about its centre slides at its corners (S1's box spun 0.34 rad per node on the
+    floor, its origin still).
+
+    Keys: ``<object>_on_<carrier>`` for an object on another, ``<object>_on_surface`` on a
+    fixed surface.
+
+    Args:
+        half_extents: Per object, its bottom patch's half sizes (x, y) [m].
+    """
     names = [str(n) for n in traj["object_names"]]
+    kind, base = traj["support_kind"], traj["support_base"]
     out: dict[str, float] = {}
     for j, name in enumerate(names):
-        riding = (traj["support_kind"][:, j] == "on_object") & traj["object_active"][:, j]
-        on = np.flatnonzero(riding)
-        if not len(on):
-            continue
-        base = int(traj["support_base"][on[0], j])
+        hx, hy = half_extents[j]
+        corners = np.array([[sx * hx, sy * hy, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
 
-        def local(k: int, j=j, base=base) -> np.ndarray:
-            pb = traj["object_q"][k, base]
-            return rpy_to_matrix(pb[3:6]).T @ (traj["object_q"][k, j, :3] - pb[:3])
+        def local(k: int, j=j, corners=corners) -> np.ndarray:
+            q = traj["object_q"][k, j]
+            world = q[:3] + corners @ rpy_to_matrix(q[3:6]).T
+            b = int(base[k, j])
+            if kind[k, j] != "on_object" or b < 0:
+                return world
+            pb = traj["object_q"][k, b]
+            return (world - pb[:3]) @ rpy_to_matrix(pb[3:6])
 
-        first = local(on[0])
-        slip = max(float(np.linalg.norm(local(k) - first)) for k in on)
-        out[f"{name}_on_{names[base]}"] = slip
+        for support in ("surface", "on_object"):
+            resting = (kind[:, j] == support) & traj["object_active"][:, j]
+            worst, start = None, None
+            for k in range(len(resting)):
+                same = k > 0 and resting[k - 1] and base[k, j] == base[k - 1, j]
+                if not resting[k]:
+                    continue
+                if not same:
+                    start = local(k)
+                moved = float(np.linalg.norm((local(k) - start)[:, :2], axis=1).max())
+                worst = moved if worst is None else max(worst, moved)
+            if worst is None:
+                continue
+            carrier = names[int(base[resting, j][0])] if support == "on_object" else "surface"
+            out[f"{name}_on_{carrier}"] = worst
     return out
 
 
-def stance_slip(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
-    """Largest horizontal move [m] of a sole centre between two nodes it stands on."""
+def stance_slip(
+    traj: dict[str, np.ndarray], sole_centre: np.ndarray, sole_half: np.ndarray
+) -> float:
+    """Largest horizontal move [m] of a sole's corner between two nodes it stands on (the
+    corners of its ``sole_half`` (2,) [m] half sizes about ``sole_centre``): a foot that
+    pivots about its centre slides at its toe and heel."""
     soles = [_sole_frames(q, sole_centre) for q in traj["q"]]
+    hx, hy = sole_half
+    corners = np.array([[sx * hx, sy * hy, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
     worst = 0.0
     for k in range(len(soles) - 1):
         for i in range(2):
             if traj["feet_contact"][k, i] and traj["feet_contact"][k + 1, i]:
-                move = soles[k + 1][i][0][:2] - soles[k][i][0][:2]
-                worst = max(worst, float(np.linalg.norm(move)))
+                (p0, R0), (p1, R1) = soles[k][i], soles[k + 1][i]
+                move = (p1 + corners @ R1.T) - (p0 + corners @ R0.T)
+                worst = max(worst, float(np.linalg.norm(move[:, :2], axis=1).max()))
     return worst
 
 

@@ -43,9 +43,9 @@ from locoman.sim.evaluate import (
     nonholonomic_violation,
     object_at_rest,
     penetrations,
-    rider_slip,
     scene_qpos,
     stance_slip,
+    support_slip,
 )
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import ObjectModel
@@ -217,7 +217,7 @@ def evaluate_scenario(
     between, by_body = unscheduled_penetrations(model, traj, cfg.substeps)
     residuals = dynamics_residuals(traj, objects, sole_centre)
     friction = friction_violation(traj, sole_centre)
-    slip = stance_slip(traj, sole_centre)
+    slip = stance_slip(traj, sole_centre, contact_frames().sole_half_extents)
     avg = float(per_node.sum() / len(per_node))
     worst = int(np.argmax(per_node))
     metrics = {
@@ -290,7 +290,7 @@ def evaluate_scenario(
     for name, lift in lifts.items():
         metrics[f"{name}_lift_m"] = lift
         checks[f"{name}_lift"] = lift >= cfg.lift_tol_m
-    for pair, value in rider_slip(traj).items():
+    for pair, value in support_slip(traj, [obj.half_extents for obj in objects]).items():
         metrics[f"{pair}_slip_max_m"] = value
         checks[f"{pair}_slip"] = value <= cfg.rider_slip_tol_m
     metrics["failed_checks"] = [name for name, passed in checks.items() if not passed]

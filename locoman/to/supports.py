@@ -91,22 +91,57 @@ class Support(abc.ABC):
         """Rows (= 0) on the wrench at a node; none but for a chassis."""
         return ca.SX(0, 1)
 
+    def contact_inequalities(self, c: SupportContact) -> ca.SX:
+        """Rows (>= 0) of the contact at node k + 1; none but where a turn is held."""
+        return ca.SX(0, 1)
+
 
 @dataclasses.dataclass(frozen=True)
 class Surface(Support):
     """The object's bottom patch on a fixed horizontal surface: (2a)-(2c), (2d) at
-    touchdown, and (3) with its bottom's half sizes."""
+    touchdown, and (3) with its bottom's half sizes; and no spin about the normal, as
+    :class:`OnObject`'s (5b): over the step where the contact goes on, no yaw rate at
+    touchdown.
+
+    Paper A's (2b) keeps the patch's point from sliding, not the patch from turning about
+    it: with (3c)'s yaw moment to turn it, S1's box spun by up to 0.34 rad per node on the
+    floor while the robot stood on it (a foot 15 mm inside its turned edge) and S2's by
+    0.21 rad on the table. A patch in static contact turns no more than it slides.
+    """
 
     name = "surface"
 
     def equalities(self, c: SupportContact) -> ca.SX:
         before = c.before.p if c.before is not None else None
         rows = patch_contact(c.now.p, c.now.v, c.now.R, c.height, c.stiffness, c.slack, before)
-        return rows if c.before is not None else ca.vertcat(rows, no_rolling(c.now.omega))
+        if c.before is not None:
+            return ca.vertcat(rows, turn_about_normal(c.before.R, c.now.R))
+        return ca.vertcat(rows, no_rolling(c.now.omega), c.now.omega[2])
+
+    def contact_inequalities(self, c: SupportContact) -> ca.SX:
+        return facing_same_way(c.before.R, c.now.R) if c.before is not None else ca.SX(0, 1)
 
     def inequalities(self, obj: ObjectModel, frame: BodyFrame, wrench: ca.SX) -> ca.SX:
         half = obj.half_extents
         return friction_cone_cop(wrench[0:3], wrench[3:6], frame.R, obj.friction, half[0], half[1])
+
+
+def turn_about_normal(R_before: ca.SX, R_now: ca.SX) -> ca.SX:
+    """sin of the turn about the shared normal between two frames whose z axes are aligned
+    ((2c) or (5a)): (R_before^T R_now)[1, 0]; = 0 where the patch does not turn.
+
+    Not R_now[0, 1] - R_before[0, 1] (the sines of the two yaws): that difference is flat
+    where the yaw is near +-90 deg, and S2's box, set at -84 deg on the trolley, turned to
+    -96 deg with it satisfied (-sin(84 deg) = -sin(96 deg)).
+    """
+    return (R_before.T @ R_now)[1, 0]
+
+
+def facing_same_way(R_before: ca.SX, R_now: ca.SX) -> ca.SX:
+    """cos of the same turn, (R_before^T R_now)[0, 0] (>= 0): with :func:`turn_about_normal`
+    = 0 alone, a half turn is no turn (sin pi = 0), and ``tiny``'s stance foot flipped by
+    180 deg between two nodes."""
+    return (R_before.T @ R_now)[0, 0]
 
 
 def _in_base(base: BodyFrame, frame: BodyFrame) -> tuple[ca.SX, ca.SX]:
@@ -140,12 +175,17 @@ class OnObject(Support):
         rows = [r[2] - c.height + c.slack, SELECT_XY @ R[:, 2]]
         if c.before is not None:
             r0, R0 = _in_base(c.base_before, c.before)
-            rows += [r[0:2] - r0[0:2], R[0, 1] - R0[0, 1]]
+            rows += [r[0:2] - r0[0:2], turn_about_normal(R0, R)]
         else:
             base = c.base_now
             relative_v = c.now.v - base.v - ca.cross(base.omega, c.now.p - base.p)
             rows += [(base.R.T @ relative_v)[0:2], base.R.T @ (c.now.omega - base.omega)]
         return ca.vertcat(*rows)
+
+    def contact_inequalities(self, c: SupportContact) -> ca.SX:
+        if c.before is None:
+            return ca.SX(0, 1)
+        return facing_same_way(_in_base(c.base_before, c.before)[1], _in_base(c.base_now, c.now)[1])
 
     def inequalities(self, obj: ObjectModel, frame: BodyFrame, wrench: ca.SX) -> ca.SX:
         half = obj.half_extents

@@ -83,7 +83,10 @@ def support_contact_kind(kind: type[Support], onset: str) -> TermKind:
             stiffness=p["k_z"],
             slack=x["slack"],
         )
-        return Rows(equalities=[support.equalities(contact)])
+        return Rows(
+            equalities=[support.equalities(contact)],
+            inequalities=[support.contact_inequalities(contact)],
+        )
 
     p_slots = {"height": 1, "k_z": 1, **OBJECT_NUMBERS}
     return term_kind(f"support_{support.name}_{onset}", x_slots, p_slots, body)
