@@ -390,23 +390,32 @@ def support_slip(traj: dict[str, np.ndarray], half_extents: list[np.ndarray]) ->
     return out
 
 
-def stance_slip(
-    traj: dict[str, np.ndarray], sole_centre: np.ndarray, sole_half: np.ndarray
-) -> float:
-    """Largest horizontal move [m] of a sole's corner between two nodes it stands on (the
-    corners of its ``sole_half`` (2,) [m] half sizes about ``sole_centre``): a foot that
-    pivots about its centre slides at its toe and heel."""
+def _stance_steps(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> Iterator[tuple]:
+    """Each (sole frame at k, at k + 1) of a foot standing at both nodes: (p, R) pairs."""
     soles = [_sole_frames(q, sole_centre) for q in traj["q"]]
-    hx, hy = sole_half
-    corners = np.array([[sx * hx, sy * hy, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
-    worst = 0.0
     for k in range(len(soles) - 1):
         for i in range(2):
             if traj["feet_contact"][k, i] and traj["feet_contact"][k + 1, i]:
-                (p0, R0), (p1, R1) = soles[k][i], soles[k + 1][i]
-                move = (p1 + corners @ R1.T) - (p0 + corners @ R0.T)
-                worst = max(worst, float(np.linalg.norm(move[:, :2], axis=1).max()))
-    return worst
+                yield soles[k][i], soles[k + 1][i]
+
+
+def stance_slip(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
+    """Largest horizontal move [m] of a sole centre between two nodes it stands on."""
+    moves = (
+        np.linalg.norm(p1[:2] - p0[:2]) for (p0, _), (p1, _) in _stance_steps(traj, sole_centre)
+    )
+    return float(max(moves, default=0.0))
+
+
+def stance_turn(traj: dict[str, np.ndarray], sole_centre: np.ndarray) -> float:
+    """Largest turn [rad] of a sole about its normal between two nodes it stands on: paper
+    A's (2b) holds the sole's centre, not its turn, and the TO's feet pivot (a sole 0.18 m
+    long turned by 12 deg slides 19 mm at its toe). Reported, not checked (docs/deviations.md)."""
+    turns = (
+        abs(np.arctan2((R0.T @ R1)[1, 0], (R0.T @ R1)[0, 0]))
+        for (_, R0), (_, R1) in _stance_steps(traj, sole_centre)
+    )
+    return float(max(turns, default=0.0))
 
 
 def support_under(

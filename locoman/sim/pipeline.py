@@ -45,6 +45,7 @@ from locoman.sim.evaluate import (
     penetrations,
     scene_qpos,
     stance_slip,
+    stance_turn,
     support_slip,
 )
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
@@ -217,7 +218,7 @@ def evaluate_scenario(
     between, by_body = unscheduled_penetrations(model, traj, cfg.substeps)
     residuals = dynamics_residuals(traj, objects, sole_centre)
     friction = friction_violation(traj, sole_centre)
-    slip = stance_slip(traj, sole_centre, contact_frames().sole_half_extents)
+    slip = stance_slip(traj, sole_centre)
     avg = float(per_node.sum() / len(per_node))
     worst = int(np.argmax(per_node))
     metrics = {
@@ -240,6 +241,7 @@ def evaluate_scenario(
         },
         "friction_cone_violation_max": friction,
         "stance_foot_slip_max_m": slip,
+        "stance_foot_turn_max_rad": stance_turn(traj, sole_centre),
         "duration_s": float(traj["dt"][:-1].sum()),
     }
     goal_errors = goal_metrics(traj, names)

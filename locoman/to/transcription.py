@@ -671,7 +671,7 @@ def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par,
             x |= (
                 {"w": at.foot(k1, i, "w")}
                 if onset == "touchdown"
-                else {"r_before": at.foot(k, i, "r"), "R_before": at.foot(k, i, "R")}
+                else {"r_before": at.foot(k, i, "r")}
             )
             p = {"surface_z": P[par["foot_surface_z"], k1][i], "k_z": k_z}
             b.own(foot_patch_kind(onset)).add(x, p)
