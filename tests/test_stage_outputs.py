@@ -149,3 +149,20 @@ def test_two_runs_of_a_stage_at_once_leave_one_whole_output(tmp_path):
     tags = {(final / f"subtask_{i}.npz").read_text()[0] for i in range(9)}
     assert len(tags) == 1  # every file from the same run
     assert not list(final.parent.glob(".contacts.*.*"))  # no staging, no old folder left
+
+
+def test_dvcs_gitignore_files_stay_at_every_depth(data):
+    """The folder swap lost ``plots/.gitignore`` (DVC's, for a cached plot): a dotfile of the
+    old folder comes along wherever the new one has its folder."""
+    (data / "plots").mkdir()
+    (data / "plots" / ".gitignore").write_text("/filmstrip.png\n")
+
+    def main(outputs, scenario):
+        out = outputs.folder(scenario, "solve")
+        (out / "plots").mkdir()
+        (out / "plots" / "filmstrip.png").write_text("png")
+        return out
+
+    stage.run_stage(main, ["demo"])
+    assert (data / ".gitignore").read_text() == "/trajectory.npz\n"
+    assert (data / "plots" / ".gitignore").read_text() == "/filmstrip.png\n"

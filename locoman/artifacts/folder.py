@@ -61,13 +61,15 @@ def locked(final: Path) -> Iterator[None]:
 
 def swap_in(staging: Path, final: Path) -> None:
     """Make ``final`` the folder ``staging`` (two renames under ``final``'s lock). The old
-    folder's dotfiles that ``staging`` lacks come along: DVC's ``.gitignore`` of the cached
-    outputs belongs to the folder, not to a run."""
+    folder's dotfiles that ``staging`` lacks come along, at any depth where ``staging`` has
+    the folder: DVC's ``.gitignore`` of the cached outputs (``plots/.gitignore`` too)
+    belongs to the folder, not to a run."""
     with locked(final):
         if final.is_dir():
-            for dotfile in final.glob(".*"):
-                if dotfile.is_file() and not (staging / dotfile.name).exists():
-                    shutil.copy2(dotfile, staging / dotfile.name)
+            for dotfile in final.rglob(".*"):
+                kept = staging / dotfile.relative_to(final)
+                if dotfile.is_file() and kept.parent.is_dir() and not kept.exists():
+                    shutil.copy2(dotfile, kept)
         old = final.with_name(f".{final.name}.old.{os.getpid()}")
         shutil.rmtree(old, ignore_errors=True)
         if final.exists():

@@ -94,7 +94,14 @@ MASKS = ArtifactSchema(
         Field("object_mask", "bool", ("H", "W"), "-", "object pixels in R_g"),
         Field("sim_object_mask", "bool", ("Hs", "Ws"), "-", "object pixels in R_s"),
         Field("keypoint_names", "str", ("K",)),
-        Field("keypoints_px", "float64", ("K", 2), "px", "(u, v) in R_g; NaN when not found"),
+        Field(
+            "keypoints_px",
+            "float64",
+            ("K", 2),
+            "px",
+            "(u, v) in R_g; NaN when not found",
+            nan_allowed=True,
+        ),
         Field("keypoint_confidence", "float64", ("K",), "-", "in [0, 1]"),
     ),
 )
