@@ -46,6 +46,7 @@ from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_ru
 from locoman.grid.sources import PACKAGE, imported_sources, imports_of
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
+from locoman.sim.penetration import CLASSES
 from locoman.to.collision import KINDS
 
 
@@ -370,8 +371,18 @@ def test_the_figures_and_the_summary_draw_from_records():
     assert max(b.get_height() for b in bars) == pytest.approx(75.0)  # cut at the bound [mm]
     assert any(b.get_hatch() == "//" for b in bars)
     runs5 = {r.name: _record(r.name) for r in PIPELINE_RUNS}
-    curves = {r.name: np.array([[0.0, 0.0], [0.1, 0.002]]) for r in PIPELINE_RUNS}
-    assert len(fig5(runs5, curves, "Fig. 5").axes) == 2
+    # time, the headline, then each class: robot-object 2 mm, object-environment 5 mm.
+    curve = np.zeros((2, 2 + len(CLASSES)))
+    curve[1, :2] = 0.1, 0.002
+    curve[1, 2 + CLASSES.index("robot_object")] = 0.002
+    curve[1, 2 + CLASSES.index("object_environment")] = 0.005
+    figure = fig5(runs5, {r.name: curve for r in PIPELINE_RUNS}, "Fig. 5")
+    assert len(figure.axes) == 4  # the headline above, the classes below
+    by_class = figure.axes[2]
+    assert {line.get_label().split(": ")[1] for line in by_class.lines} == {
+        "robot_object",
+        "object_environment",
+    }
     table = summary_csv(records).splitlines()
     assert table[0].split(",") == list(SUMMARY_COLUMNS) and len(table) == 17
     assert "| AllKeyframe | 5 | 0.6 | converged |" in markdown_table(records)

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 
-import mujoco
 import numpy as np
 import pytest
 
 from locoman.config.to import SolveCfg, SolverCfg
 from locoman.errors import ConfigError
 from locoman.scene import g1
-from locoman.sim.evaluate import cone_violation, dynamics_residuals, geom_label, stance_slip
+from locoman.sim.evaluate import cone_violation, dynamics_residuals, stance_slip
 from locoman.to.collision import KINDS, CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.inputs import Keyframe, TOInputs
@@ -239,17 +238,6 @@ def test_cone_violation_is_zero_inside_and_the_excess_outside():
     assert cone_violation(np.zeros(3), np.array([0.0, 1.5, 0.0]), R, 0.5, half) == pytest.approx(
         1.5
     )
-
-
-def test_geom_label_names_unnamed_geoms_by_their_body():
-    model = mujoco.MjModel.from_xml_string(
-        """<mujoco><worldbody>
-        <geom name="table/top" type="box" size="1 1 0.1"/>
-        <body name="left_wrist_yaw_link"><geom type="sphere" size="0.05"/></body>
-        </worldbody></mujoco>"""
-    )
-    assert geom_label(model, 0) == "table/top"
-    assert geom_label(model, 1) == "left_wrist_yaw_link#1"
 
 
 def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):

@@ -168,10 +168,16 @@ class EvaluateCfg:
             [kg m/s, kg m^2/s, m].
         friction_tol: Largest violation of (3) allowed [N, N m].
         slip_tol_m: Largest stance-foot slip allowed [m].
-        penetration_tol_m: Largest average penetration allowed [m].
-        max_penetration_tol_m: Largest penetration at any node, or at any of ``substeps``
-            poses between two (the average hides a deep one; tiny's deepest is 2.3 mm, a
-            foot on the floor) [m].
+        penetration_tol_m: Largest average penetration allowed, paper A's (the robot's
+            self, robot-object and robot-environment pairs, :mod:`locoman.sim.penetration`)
+            [m].
+        max_penetration_tol_m: Largest such penetration at any node, or at any of
+            ``substeps`` poses between two (the average hides a deep one) [m].
+        scheduled_contact_tol_m: Largest penetration of a scheduled contact (a standing
+            sole into its support, a holding hand into its object) at any node: the TO
+            holds these on the surface, so a few mm [m].
+        object_penetration_tol_m: Largest penetration of an object into furniture, the
+            floor or another object at any node [m].
         substeps: Poses checked between two nodes (q and the objects linear along the
             step): a body can pass through a thin one between two nodes.
         goal_tol_m: Largest distance of an object from its target [m], where its subtask
@@ -194,6 +200,8 @@ class EvaluateCfg:
     slip_tol_m: float = 1e-3
     penetration_tol_m: float = 0.01
     max_penetration_tol_m: float = 0.02
+    scheduled_contact_tol_m: float = 0.005
+    object_penetration_tol_m: float = 0.02
     substeps: int = 3
     goal_tol_m: float = 0.02
     rest_height_tol_m: float = 0.01
@@ -211,6 +219,8 @@ class EvaluateCfg:
             "slip_tol_m",
             "penetration_tol_m",
             "max_penetration_tol_m",
+            "scheduled_contact_tol_m",
+            "object_penetration_tol_m",
             "goal_tol_m",
             "rest_height_tol_m",
             "rest_speed_tol",

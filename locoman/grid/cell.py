@@ -274,6 +274,7 @@ def _evaluate(evaluate: EvaluateCfg, out: Path) -> dict[str, Any]:
         "avg_penetration_m": metrics["avg_penetration_m"],
         "max_penetration_m": metrics["max_penetration_m"],
         "max_penetration_pair": metrics["max_penetration_pair"],
+        "penetration_by_class": metrics["penetration_by_class"],
         "dynamics_residual_max": metrics["dynamics_residual_max"],
         "object_goal_error_m": metrics["object_goal_error_m"],
         "success": metrics["success"],

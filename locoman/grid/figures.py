@@ -1,9 +1,10 @@
 """Paper A's Fig. 5 and Fig. 6 and their summary, drawn from the cells' records.
 
-- Fig. 5 (Sec. V-A, V-B): total penetration per node of the TO, replayed in MuJoCo, for
-  the four runs of :data:`~locoman.grid.runs.PIPELINE_RUNS`; left panel ours against naive
-  with the minimal collision set, right panel ours against the geometry-unaware contacts
-  with every collision term off.
+- Fig. 5 (Sec. V-A, V-B): paper A's penetration per node of the TO (the robot's self,
+  robot-object and robot-environment pairs), replayed in MuJoCo, for the four runs of
+  :data:`~locoman.grid.runs.PIPELINE_RUNS`; left ours against naive with the minimal
+  collision set, right ours against the geometry-unaware contacts with every collision
+  term off; below each, the same runs per class (:mod:`locoman.sim.penetration`).
 - Fig. 6 (Sec. V-C): one panel per (box mass, initial yaw); one bar per keyframe setting,
   its average penetration (the sum over nodes / nodes); hatched where the TO did not
   converge, a triangle at the axis bound where the bar is cut, an ``x`` where the cell
@@ -25,6 +26,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from locoman.grid.runs import KEYFRAME_RUNS, PIPELINE_RUNS
+from locoman.sim.penetration import CLASSES
 
 # Paper A's colours where it names them: ours blue, naive red (Fig. 5); NoKeyframe grey and
 # AllKeyframe pink (Fig. 6).
@@ -63,37 +65,60 @@ SUMMARY_COLUMNS = (
 )
 
 
+# A class's line in Fig. 5's lower panels.
+CLASS_STYLES = {
+    "self": ":",
+    "robot_object": "-",
+    "robot_environment": "-.",
+    "scheduled_contact": (0, (1, 3)),
+    "object_environment": "--",
+}
+
+
 def fig5(records: dict[str, dict[str, Any]], curves: dict[str, np.ndarray], title: str) -> Figure:
     """Fig. 5 of one scenario.
 
     Args:
         records: Run name -> the cell's record.
-        curves: Run name -> (N, 2) time [s] and total penetration [m] per node.
+        curves: Run name -> (N, 2 + classes) time [s], paper A's penetration and each
+            class's [m] per node (:data:`locoman.grid.report.CURVE_COLUMNS`).
         title: The figure's title.
     """
-    fig = Figure(figsize=(11, 4), layout="constrained")
+    fig = Figure(figsize=(11, 7), layout="constrained")
     fig.suptitle(title)
     panels = (
         ("V-A: minimal collision set", ("ours", "naive")),
         ("V-B: no collision terms", ("ours_no_collision", "geometry_unaware")),
     )
     labels = {r.name: r.label for r in PIPELINE_RUNS}
-    for ax, (name, runs) in zip(fig.subplots(1, 2, sharey=True), panels, strict=True):
+    axes = fig.subplots(2, 2, sharex="col")
+    for (ax, by_class), (name, runs) in zip(axes.T, panels, strict=True):
         for run in runs:
             record = records.get(run)
             if record is None or run not in curves:
                 why = record["reason"] if record else "not run"
                 ax.plot([], [], color=FIG5_COLOURS[run], label=f"{labels[run]}: {why}")
                 continue
-            t, pen = curves[run].T
+            t, pen, *classes = curves[run].T
             converged = "" if record["status"] == "converged" else " (not converged)"
             style = "-" if run in ("ours", "ours_no_collision") else "--"
             ax.plot(t, pen * 1000, style, color=FIG5_COLOURS[run], label=labels[run] + converged)
+            for kind, values in zip(CLASSES, classes, strict=True):
+                if values.any():
+                    by_class.plot(
+                        t,
+                        values * 1000,
+                        ls=CLASS_STYLES[kind],
+                        color=FIG5_COLOURS[run],
+                        label=f"{labels[run]}: {kind}",
+                    )
         ax.set_title(name)
-        ax.set_xlabel("time [s]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.axes[0].set_ylabel("total penetration at the node [mm]")
+        by_class.set_xlabel("time [s]")
+        for a in (ax, by_class):
+            a.grid(alpha=0.3)
+            a.legend(fontsize=7)
+    axes[0, 0].set_ylabel("penetration at the node [mm]\n(self + robot-object + robot-env.)")
+    axes[1, 0].set_ylabel("per class [mm]")
     return fig
 
 

@@ -29,6 +29,7 @@ from locoman.grid.claims import Claim, claims_markdown, fig5_claims, fig6_claims
 from locoman.grid.figures import fig5, fig6, markdown_table, setting_table, summary_csv
 from locoman.grid.launch import cells, launch
 from locoman.grid.runs import KEYFRAME_RUNS
+from locoman.sim.penetration import CLASSES
 
 
 def collect(cfg: RootCfg, scenario: str, figure: str, data_dir: Path) -> list[dict[str, Any]]:
@@ -49,19 +50,27 @@ def collect(cfg: RootCfg, scenario: str, figure: str, data_dir: Path) -> list[di
     return records
 
 
+# A Fig. 5 curve's columns: paper A's penetration, then each class's (locoman.sim.penetration).
+CURVE_COLUMNS = ("time_s", "penetration_m", *(f"{kind}_m" for kind in CLASSES))
+
+
 def penetration_curve(folder: Path) -> np.ndarray | None:
-    """(N, 2) time [s] and penetration [m] per node from a cell's evaluation, if it ran."""
+    """(N, 2 + classes) time [s], paper A's penetration and each class's [m] per node
+    (:data:`CURVE_COLUMNS`) from a cell's evaluation, if it ran."""
     path = folder / "evaluate" / "plots" / "penetration.csv"
     if not path.is_file():
         return None
     with path.open() as f:
         rows = list(csv.DictReader(f))
-    return np.array([[float(r["time_s"]), float(r["penetration_m"])] for r in rows])
+    return np.array([[float(r[c]) for c in CURVE_COLUMNS] for r in rows])
 
 
 def _curve_csv(curve: np.ndarray) -> str:
-    lines = ["node,time_s,penetration_m"]
-    lines += [f"{k},{t:.6f},{p:.9f}" for k, (t, p) in enumerate(curve)]
+    lines = [",".join(("node", *CURVE_COLUMNS))]
+    lines += [
+        ",".join([str(k), f"{row[0]:.6f}", *(f"{v:.9f}" for v in row[1:])])
+        for k, row in enumerate(curve)
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -105,6 +114,7 @@ def report_fig5(
                 "status": r["status"],
                 "avg_penetration_m": r.get("avg_penetration_m"),
                 "max_penetration_m": r.get("max_penetration_m"),
+                "penetration_by_class": r.get("penetration_by_class"),
             }
             for r in records
         },

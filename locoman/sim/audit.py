@@ -69,7 +69,9 @@ class ClosePair:
         return f"{self.a.geom} | {self.b.geom}"
 
 
-def _body(model: mujoco.MjModel, geom: int, movable: list[str]) -> Body:
+def body_of(model: mujoco.MjModel, geom: int, movable: list[str]) -> Body:
+    """What ``geom`` belongs to: the floor, an object (named ``<object>/<part>``; movable if
+    in ``movable``, else fixed) or a link of the robot."""
     name = model.geom(geom).name
     if name == FLOOR:
         return Body("floor", FLOOR, FLOOR)
@@ -134,8 +136,8 @@ def close_pairs(
             pair = ClosePair(
                 k,
                 t,
-                _body(model, c.geom1, names),
-                _body(model, c.geom2, names),
+                body_of(model, c.geom1, names),
+                body_of(model, c.geom2, names),
                 float(c.dist),
                 np.array(c.pos),
             )

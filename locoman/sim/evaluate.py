@@ -1,9 +1,10 @@
 """Checks of a solved trajectory that share no code with the TO (paper A, Sec. V).
 
-- Penetration: the trajectory is replayed kinematically in the MuJoCo scene; at each node the
-  negative signed distances of all contacts (robot, object, environment, the robot's own
-  links) are summed. The paper's average penetration is the sum over nodes divided by the
-  number of nodes.
+- Penetration (:mod:`locoman.sim.penetration`): the trajectory is replayed kinematically in
+  the MuJoCo scene; at each node every penetrating geom pair counts once, at its deepest
+  contact, in a class (self, robot-object, robot-environment, scheduled contact,
+  object-environment). The paper's penetration per node is the sum over its self and
+  robot pairs; its average is the sum over nodes divided by the number of nodes.
 - Dynamics: Pinocchio recomputes the robot's centroidal momentum from q, v, and the rigid
   object's from its pose and rate; (1a) and (1b) are checked with the solved wrenches and
   time steps.
@@ -60,33 +61,6 @@ def scene_qpos(
         mujoco.mju_mat2Quat(quat, rpy_to_matrix(pose[3:6]).ravel())
         qpos[adr : adr + 7] = np.r_[pose[:3], quat]
     return qpos
-
-
-def geom_label(model: mujoco.MjModel, geom: int) -> str:
-    """The geom's name, or, for the robot's unnamed mesh geoms, its body's name and index."""
-    name = model.geom(geom).name
-    return name or f"{model.body(model.geom_bodyid[geom]).name}#{geom}"
-
-
-def penetrations(
-    model: mujoco.MjModel, q: np.ndarray, names: list[str], object_q: np.ndarray
-) -> tuple[np.ndarray, list[tuple[str, str, float]]]:
-    """Total penetration [m] per node (sum of -dist over contacts with dist < 0), and the
-    deepest (geom, geom, depth) per node; ``object_q`` (N, M, 6)."""
-    data = mujoco.MjData(model)
-    totals, worst = [], []
-    for qk, ok in zip(q, object_q, strict=True):
-        data.qpos[:] = scene_qpos(model, qk, names, ok)
-        mujoco.mj_forward(model, data)
-        depth, deepest = 0.0, ("", "", 0.0)
-        for c in data.contact[: data.ncon]:
-            if c.dist < 0.0:
-                depth -= c.dist
-                if -c.dist > deepest[2]:
-                    deepest = (geom_label(model, c.geom1), geom_label(model, c.geom2), -c.dist)
-        totals.append(depth)
-        worst.append(deepest)
-    return np.array(totals), worst
 
 
 def poses(

@@ -4,7 +4,8 @@ Layout under ``data/<scenario>/evaluate/``::
 
     metrics.json              penetration, residuals, friction, slip, goal, rest, success
                               and failed_checks (which of them failed)
-    plots/penetration.csv     total penetration per node (paper A, Fig. 5), for dvc plots
+    plots/penetration.csv     penetration per node (paper A, Fig. 5: penetration_m) and per
+                              class (locoman.sim.penetration), for dvc plots
     plots/filmstrip.png       the motion, a few nodes side by side
     motion.mp4                the motion in real time, 30 frames per second
 """
@@ -42,12 +43,12 @@ from locoman.sim.evaluate import (
     nonholonomic_tangent,
     nonholonomic_violation,
     object_at_rest,
-    penetrations,
     scene_qpos,
     stance_slip,
     stance_turn,
     support_slip,
 )
+from locoman.sim.penetration import CLASSES, HEADLINE, Penetrations, penetrations
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import ObjectModel
 
@@ -202,6 +203,21 @@ def all_finite(traj: dict[str, np.ndarray]) -> bool:
     )
 
 
+def penetration_csv(time: np.ndarray, found: Penetrations) -> str:
+    """Fig. 5's curve: per node its time [s], paper A's penetration [m] (``penetration_m``),
+    each class's (``<class>_m``) and the sum over every contact (``contact_sum_m``)."""
+    columns = [found.per_node(HEADLINE)] + [found.per_node((kind,)) for kind in CLASSES]
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(
+        ["node", "time_s", "penetration_m", *(f"{kind}_m" for kind in CLASSES), "contact_sum_m"]
+    )
+    for k, t in enumerate(time):
+        values = [c[k] for c in columns] + [found.contact_sum[k]]
+        writer.writerow([k, f"{t:.6f}", *(f"{v:.9f}" for v in values)])
+    return buffer.getvalue()
+
+
 def evaluate_scenario(
     scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: EvaluateCfg, media: bool = True
 ) -> dict:
@@ -214,19 +230,25 @@ def evaluate_scenario(
     specs = load_objects(scene_dir)
     objects = [ObjectModel.from_spec(name, specs[name]) for name in names]
     sole_centre = contact_frames().sole["left_sole"]
-    per_node, deepest = penetrations(model, traj["q"], names, traj["object_q"])
+    found = penetrations(model, traj)
+    per_node = found.per_node(HEADLINE)
+    by_class = found.by_class()
     between, by_body = unscheduled_penetrations(model, traj, cfg.substeps)
     residuals = dynamics_residuals(traj, objects, sole_centre)
     friction = friction_violation(traj, sole_centre)
     slip = stance_slip(traj, sole_centre)
     avg = float(per_node.sum() / len(per_node))
     worst = int(np.argmax(per_node))
+    worst_pair = found.deepest(HEADLINE, worst)
     metrics = {
         "solve_status": str(traj["status"]),
         "avg_penetration_m": avg,
         "max_penetration_m": float(per_node.max()),
         "max_penetration_node": worst,
-        "max_penetration_pair": list(deepest[worst][:2]),
+        "max_penetration_pair": [] if worst_pair is None else list(worst_pair.geoms),
+        "penetration_by_class": by_class,
+        "contact_sum_penetration_avg_m": float(found.contact_sum.mean()),
+        "contact_sum_penetration_max_m": float(found.contact_sum.max()),
         "max_unscheduled_penetration_between_nodes_m": between,
         "deepest_penetration": {
             body: dataclasses.asdict(p) | {"pair": list(p.pair)}
@@ -281,6 +303,10 @@ def evaluate_scenario(
         "stance_foot_slip": slip <= cfg.slip_tol_m,
         "avg_penetration": avg <= cfg.penetration_tol_m,
         "max_penetration": max(float(per_node.max()), between) <= cfg.max_penetration_tol_m,
+        "scheduled_contact_penetration": by_class["scheduled_contact"]["max_m"]
+        <= cfg.scheduled_contact_tol_m,
+        "object_penetration": by_class["object_environment"]["max_m"]
+        <= cfg.object_penetration_tol_m,
         "object_goal": metrics["object_goal_error_m"] <= cfg.goal_tol_m,
         "objects_at_rest_on_support": all(at_rest for at_rest, _ in rest.values()),
     }
@@ -297,13 +323,8 @@ def evaluate_scenario(
         checks[f"{pair}_slip"] = value <= cfg.rider_slip_tol_m
     metrics["failed_checks"] = [name for name, passed in checks.items() if not passed]
     metrics["success"] = not metrics["failed_checks"]
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(["node", "time_s", "penetration_m"])
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
-    for k, (t, p) in enumerate(zip(time, per_node, strict=True)):
-        writer.writerow([k, f"{t:.6f}", f"{p:.9f}"])
-    write_text_atomic(out_dir / "plots" / "penetration.csv", buffer.getvalue())
+    write_text_atomic(out_dir / "plots" / "penetration.csv", penetration_csv(time, found))
     if media:
         bearing = view_bearing(model, traj, cfg.filmstrip_frames)
         strip = filmstrip(model, traj, cfg.filmstrip_frames, bearing)
