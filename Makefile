@@ -24,8 +24,8 @@ $(STAMP): pyproject.toml requirements.lock
 	@[ -d .dvc ] || $(BIN)/dvc init -q
 	touch $(STAMP)
 
-# torch serves only the optional learned backends: not in the default install, but the
-# tests exercise the TorchScript descriptor with a tiny model.
+# The learned backends (torch, diffusers, transformers) are not in the default install, but the
+# tests run each of them on small models they build.
 LEARNED := $(VENV)/.installed-learned
 $(LEARNED): $(STAMP)
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev,learned]"

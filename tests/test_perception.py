@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from locoman.config.perception import CloudsCfg, DepthErrorCfg, FluxCfg, GenerateCfg
+from locoman.config.perception import CloudsCfg, DepthErrorCfg, FluxCfg, GenerateCfg, TorchCfg
 from locoman.errors import ModelError, SceneError
 from locoman.perception import camera, demonstrator
 from locoman.perception.clouds import (
@@ -269,7 +269,7 @@ def test_learned_backends_fail_clearly_without_weights(tmp_path):
     with pytest.raises(ModelError, match=r"model_index\.json"):
         load_flux_pipeline(FluxCfg(weights_dir=str(tmp_path)))
     with pytest.raises(ModelError, match=r"config\.json"):
-        SamSegmenter(str(tmp_path))
+        SamSegmenter(str(tmp_path), TorchCfg())
     (tmp_path / "model_index.json").write_text("{}")
     with pytest.raises(ModelError, match=r"diffusers|cannot load"):
         load_flux_pipeline(FluxCfg(weights_dir=str(tmp_path)))

@@ -7,6 +7,7 @@ and ``perception.depth_error`` (the error model standing in for a metric-depth n
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 GENERATE_BACKENDS = ("render", "flux")
@@ -14,6 +15,7 @@ MASK_BACKENDS = ("render", "grabcut", "sam")
 KEYPOINT_BACKENDS = ("render", "mediapipe")
 DEPTH_BACKENDS = ("error_model", "depth_anything")
 INTRINSICS = ("heuristic", "true")
+TORCH_DTYPES = ("float32", "bfloat16", "float16")
 
 
 def _range(name: str, values: list[float], lo: float, hi: float) -> list[tuple[str, str]]:
@@ -124,6 +126,29 @@ class SimViewCfg:
 
 
 @dataclass
+class TorchCfg:
+    """Where a learned model runs.
+
+    Attributes:
+        device: torch device: ``cpu``, ``cuda`` or ``cuda:<index>``; asking for CUDA where
+            torch sees none is an error, never a silent fall back to the CPU.
+        dtype: Precision of the weights and inputs: ``float32``, ``bfloat16`` or
+            ``float16`` (CUDA only: many CPU kernels have no float16).
+    """
+
+    device: str = "cpu"
+    dtype: str = "float32"
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = _choice("dtype", self.dtype, TORCH_DTYPES)
+        if not re.fullmatch(r"cpu|cuda(:\d+)?", self.device):
+            errors.append(("device", f"must be cpu, cuda or cuda:<index>, got {self.device!r}"))
+        elif self.dtype == "float16" and self.device == "cpu":
+            errors.append(("dtype", "float16 runs on CUDA only; use bfloat16 or float32 on cpu"))
+        return errors
+
+
+@dataclass
 class FluxCfg:
     """The ``flux`` image backend: a diffusers pipeline loaded from a local folder.
 
@@ -132,16 +157,21 @@ class FluxCfg:
             a local copy of FLUX.1-schnell. Nothing is downloaded.
         steps: Denoising steps.
         guidance_scale: Classifier-free guidance [-].
-        device: torch device, e.g. ``cpu`` or ``cuda``.
+        max_sequence_length: Prompt tokens the T5 encoder reads (FLUX.1-schnell: <= 256).
+        runtime: Device and precision.
     """
 
     weights_dir: str | None = None
     steps: int = 4
     guidance_scale: float = 0.0
-    device: str = "cpu"
+    max_sequence_length: int = 256
+    runtime: TorchCfg = field(default_factory=TorchCfg)
 
     def check(self) -> list[tuple[str, str]]:
-        return [] if self.steps >= 1 else [("steps", "must be >= 1")]
+        errors = [] if self.steps >= 1 else [("steps", "must be >= 1")]
+        if not 1 <= self.max_sequence_length <= 512:
+            errors.append(("max_sequence_length", "must be within [1, 512] tokens"))
+        return errors
 
 
 @dataclass
@@ -184,6 +214,7 @@ class MasksCfg:
             ``sam`` [px]; the box stands in for the paper's open-vocabulary detector.
         grabcut_iterations: GrabCut iterations.
         sam_weights_dir: Folder of a transformers SAM checkpoint (``config.json`` and weights).
+        sam_runtime: Device and precision of SAM.
         keypoints: ``render`` (true keypoints plus ``keypoint_jitter_px``) or ``mediapipe``
             (BlazePose, needs the optional ``mediapipe`` package).
         keypoint_jitter_px: Std of the Gaussian pixel noise on each keypoint [px].
@@ -196,6 +227,7 @@ class MasksCfg:
     box_margin_px: int = 8
     grabcut_iterations: int = 5
     sam_weights_dir: str | None = None
+    sam_runtime: TorchCfg = field(default_factory=TorchCfg)
     keypoints: str = "render"
     keypoint_jitter_px: float = 3.0
     pose_noise_m: float = 0.01
@@ -245,6 +277,7 @@ class CloudsCfg:
         depth: ``error_model`` (true depth through ``perception.depth_error``) or
             ``depth_anything`` (a transformers depth-estimation checkpoint).
         depth_weights_dir: Folder of the depth checkpoint for ``depth_anything``.
+        depth_runtime: Device and precision of the depth model.
         intrinsics: ``heuristic`` (the paper: focal lengths = image resolution, principal
             point = half of it) or ``true`` (the renderer's, for ablation).
         outlier_neighbours: Neighbours of the statistical outlier removal (the point included).
@@ -255,6 +288,7 @@ class CloudsCfg:
 
     depth: str = "error_model"
     depth_weights_dir: str | None = None
+    depth_runtime: TorchCfg = field(default_factory=TorchCfg)
     intrinsics: str = "heuristic"
     outlier_neighbours: int = 20
     outlier_std_ratio: float = 2.0

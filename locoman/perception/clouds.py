@@ -161,7 +161,9 @@ def clouds_scenario(
     """Write depth, clouds, lifted keypoints and a contact sheet per subtask; return metrics."""
     prompts = read_json(generate_dir / PROMPTS_FILE, PROMPTS)
     estimator = (
-        DepthAnythingEstimator(cfg.depth_weights_dir) if cfg.depth == "depth_anything" else None
+        DepthAnythingEstimator(cfg.depth_weights_dir, cfg.depth_runtime)
+        if cfg.depth == "depth_anything"
+        else None
     )
     rows = []
     for entry in progress(prompts["subtasks"], f"clouds {scenario}"):

@@ -12,9 +12,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from locoman.config.perception import DepthErrorCfg
+from locoman.config.perception import DepthErrorCfg, TorchCfg
 from locoman.errors import ModelError
-from locoman.perception.weights import check_weights_dir, require_package
+from locoman.perception.weights import check_weights_dir, require_package, torch_runtime
 
 
 def depth_edges(depth: np.ndarray, jump_m: float) -> np.ndarray:
@@ -52,30 +52,30 @@ class DepthAnythingEstimator:
 
     Args:
         weights_dir: Folder with ``config.json``, weights and ``preprocessor_config.json``.
-        device: torch device.
+        runtime: Device and precision.
     """
 
-    def __init__(self, weights_dir: str | None, device: str = "cpu") -> None:
+    def __init__(self, weights_dir: str | None, runtime: TorchCfg) -> None:
         path = check_weights_dir(weights_dir, "perception.clouds.depth_weights_dir", "config.json")
+        self.device, self.dtype = torch_runtime(runtime, "perception.clouds.depth_runtime")
         transformers = require_package("transformers")
         try:
             self.model = transformers.AutoModelForDepthEstimation.from_pretrained(
-                str(path), local_files_only=True
+                str(path), local_files_only=True, dtype=self.dtype
             )
             self.processor = transformers.AutoImageProcessor.from_pretrained(
                 str(path), local_files_only=True
             )
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, KeyError) as exc:  # KeyError: a config lacks a key
             raise ModelError(f"cannot load the depth model from {path}: {exc}") from None
-        self.device = device
-        self.model.to(device).eval()
+        self.model.to(self.device).eval()
 
     def __call__(self, rgb: np.ndarray) -> np.ndarray:
         """Depth (H, W) float32 [m] of an RGB image, resized to the image."""
         torch: Any = require_package("torch")
-        inputs = self.processor(images=rgb, return_tensors="pt").to(self.device)
+        inputs = self.processor(images=rgb, return_tensors="pt").to(self.device, self.dtype)
         with torch.no_grad():
-            pred = self.model(**inputs).predicted_depth
+            pred = self.model(**inputs).predicted_depth.float()
         pred = torch.nn.functional.interpolate(
             pred[:, None], size=rgb.shape[:2], mode="bicubic", align_corners=False
         )

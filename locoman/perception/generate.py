@@ -29,6 +29,12 @@ from locoman.scene.io import load_objects, load_plan
 from locoman.scene.objects import ContactPatch
 from locoman.scene.plan_state import plan_states, world_pose
 
+# What a backend without ground truth leaves unscored, in its metrics.
+NO_TRUTH = (
+    "the images have no ground truth (object masks, keypoints, depth, contacts): the "
+    "stages downstream cannot score their outputs against anything"
+)
+
 
 def subtask_rng(seed: int, scenario: str, index: int) -> np.random.Generator:
     """Independent, reproducible random stream of one subtask."""
@@ -117,6 +123,9 @@ def generate_scenario(
     }
     if generator is None:
         metrics["ik_residual_max_m"] = max(r["ik_residual_m"] for r in per_subtask)
+    metrics["ground_truth"] = generator is None
+    if generator is not None:
+        metrics["not_scored"] = NO_TRUTH
     write_metrics(out_dir, metrics)
     return metrics
 

@@ -48,10 +48,12 @@ def load_truth(generate_dir: Path, index: int) -> dict[str, np.ndarray] | None:
 
 
 def _require_truth(truth: dict | None, what: str) -> dict[str, np.ndarray]:
+    """The ground truth, or a :class:`ConfigError`: ``what`` (which says what it takes from
+    the truth and what would replace it) cannot run on images without it."""
     if truth is None:
         raise ConfigError(
-            f"{what} needs the render backend's ground truth, and the images come from a "
-            "backend without it (flux); choose a learned backend for this step"
+            f"{what}, and these images have none (perception.generate.backend is not "
+            "render): run this step on the render backend's images"
         )
     return truth
 
@@ -61,7 +63,7 @@ def masks_scenario(
 ) -> dict[str, Any]:
     """Write masks, keypoints and pose of every subtask; return the stage's metrics."""
     prompts = read_json(generate_dir / PROMPTS_FILE, PROMPTS)
-    sam = SamSegmenter(cfg.sam_weights_dir) if cfg.backend == "sam" else None
+    sam = SamSegmenter(cfg.sam_weights_dir, cfg.sam_runtime) if cfg.backend == "sam" else None
     joint_names = [human.human_pinocchio_model().names[j] for j in range(2, 38)]
     rows = []
     for entry in progress(prompts["subtasks"], f"masks {scenario}"):
@@ -86,7 +88,13 @@ def masks_scenario(
         names = np.array(list(kp.KEYPOINTS))
         if cfg.keypoints == "render":
             px, conf = kp.jittered_keypoints(
-                _require_truth(truth, "keypoints = render"), cfg.keypoint_jitter_px, rng
+                _require_truth(
+                    truth,
+                    "perception.masks.keypoints=render jitters the true keypoints "
+                    "(keypoints=mediapipe detects them)",
+                ),
+                cfg.keypoint_jitter_px,
+                rng,
             )
         else:
             px, conf = kp.mediapipe_keypoints(rgb)
@@ -102,7 +110,11 @@ def masks_scenario(
             },
         )
         pose = kp.pose_estimate(
-            _require_truth(truth, "the 3D pose estimate"),
+            _require_truth(
+                truth,
+                "the 3D human pose perturbs the true pose (a 3D pose estimator from images "
+                "is not built)",
+            ),
             joint_names,
             cfg.pose_noise_m,
             cfg.pose_noise_rad,
@@ -139,7 +151,11 @@ def _segment(
     where: str,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Masks (R_g, R_s) from backend ``name``."""
-    truth = _require_truth(truth, f"masks backend {name!r} ({where})")
+    truth = _require_truth(
+        truth,
+        f"{where}: masks backend {name!r} is prompted with a box around the true mask, "
+        "standing in for the paper's open-vocabulary detector (not built)",
+    )
     gen_true = check_mask(truth["object_mask"], f"{where}, generated image")
     sim_true = check_mask(truth["sim_object_mask"], f"{where}, simulated view")
     if name == "render":

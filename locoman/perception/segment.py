@@ -13,8 +13,9 @@ from typing import Any
 import cv2
 import numpy as np
 
+from locoman.config.perception import TorchCfg
 from locoman.errors import ModelError, SceneError
-from locoman.perception.weights import check_weights_dir, require_package
+from locoman.perception.weights import check_weights_dir, require_package, torch_runtime
 
 
 def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -67,32 +68,34 @@ class SamSegmenter:
     Args:
         weights_dir: Folder with ``config.json``, the weights and the processor's
             ``preprocessor_config.json`` (written by ``save_pretrained``).
-        device: torch device.
+        runtime: Device and precision.
     """
 
-    def __init__(self, weights_dir: str | None, device: str = "cpu") -> None:
+    def __init__(self, weights_dir: str | None, runtime: TorchCfg) -> None:
         path = check_weights_dir(weights_dir, "perception.masks.sam_weights_dir", "config.json")
+        self.device, self.dtype = torch_runtime(runtime, "perception.masks.sam_runtime")
         transformers = require_package("transformers")
         try:
-            self.model = transformers.SamModel.from_pretrained(str(path), local_files_only=True)
+            self.model = transformers.SamModel.from_pretrained(
+                str(path), local_files_only=True, dtype=self.dtype
+            )
             self.processor = transformers.SamProcessor.from_pretrained(
                 str(path), local_files_only=True
             )
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, KeyError) as exc:  # KeyError: a config lacks a key
             raise ModelError(f"cannot load the SAM checkpoint from {path}: {exc}") from None
-        self.device = device
-        self.model.to(device).eval()
+        self.model.to(self.device).eval()
 
     def __call__(self, rgb: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """The best-scoring mask (H, W) bool for ``box`` (x0, y0, x1, y1) [px]."""
         torch: Any = require_package("torch")
         inputs = self.processor(
             images=rgb, input_boxes=[[[float(c) for c in box]]], return_tensors="pt"
-        ).to(self.device)
+        ).to(self.device, self.dtype)  # BatchFeature.to casts the floating tensors only
         with torch.no_grad():
             out = self.model(**inputs, multimask_output=True)
         masks = self.processor.image_processor.post_process_masks(
-            out.pred_masks.cpu(),
+            out.pred_masks.float().cpu(),
             inputs["original_sizes"].cpu(),
             inputs["reshaped_input_sizes"].cpu(),
         )[0][0]

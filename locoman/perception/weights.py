@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from locoman.config.perception import TorchCfg
 from locoman.errors import ModelError
 
 
@@ -47,3 +48,15 @@ def check_weights_dir(weights_dir: str | None, key: str, marker: str) -> Path:
             "(save the model there with save_pretrained)"
         )
     return path
+
+
+def torch_runtime(cfg: TorchCfg, key: str) -> tuple[Any, Any]:
+    """(torch device, torch dtype) of ``cfg``, or a :class:`ModelError` naming ``key`` when
+    it asks for CUDA and torch sees none (the pinned torch is the CPU build)."""
+    torch = require_package("torch")
+    if cfg.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ModelError(
+            f"{key}.device = {cfg.device!r}, and torch {torch.__version__} sees no CUDA "
+            f"device: set {key}.device=cpu, or install a CUDA build of torch on a GPU machine"
+        )
+    return torch.device(cfg.device), getattr(torch, cfg.dtype)
