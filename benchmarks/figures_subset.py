@@ -1,7 +1,7 @@
 """Paper A's Fig. 5 and Fig. 6 of one scenario on a subset of its Fig. 6 grid.
 
 Usage: python benchmarks/figures_subset.py <scenario> <out_dir> [--box-mass M ...]
-       [--initial-yaw Y ...] [--figures fig5|fig6 ...]
+       [--initial-yaw Y ...] [--figures fig5|fig6|vb ...]
 
 S1's and S2's full grids (``figures.grids``: 48 and 120 cells) take hours on 2 cores. This
 runs Fig. 5's four cells and Fig. 6's eight keyframe settings at the given box masses [kg]

@@ -32,7 +32,7 @@ from locoman.grid.cell import (
     solve_key,
     with_time_limit,
 )
-from locoman.grid.claims import fig5_claims, fig6_claims
+from locoman.grid.claims import fig5_claims, fig6_claims, vb_claims
 from locoman.grid.figures import (
     SUMMARY_COLUMNS,
     fig5,
@@ -334,14 +334,31 @@ def test_fig5_claims_follow_the_evaluations_bounds():
     runs = {
         "ours": _record("ours", pen=0.001),
         "naive": _record("naive", "not_converged", pen=0.05),
-        "ours_no_collision": _record("ours_no_collision", pen=0.16),
-        "geometry_unaware": _record("geometry_unaware", pen=0.06),
     }
-    minimal, transfer = fig5_claims(runs, cfg)
+    (minimal,) = fig5_claims(runs, cfg)
     assert minimal.holds is True and "naive: not_converged" in minimal.evidence
-    assert transfer.holds is False  # ours penetrates more without collision terms: say so
     runs["naive"] = {**runs["naive"], "status": "error", "reason": "boom"}
     assert fig5_claims(runs, cfg)[0].holds is None
+
+
+def _vb_cells(ours: list[float], unaware: list[float]) -> list[dict]:
+    return [
+        {**_record(run, pen=pen, yaw=0.3 * k), "figure": "vb"}
+        for k, pair in enumerate(zip(ours, unaware, strict=True))
+        for run, pen in zip(("ours_no_collision", "geometry_unaware"), pair, strict=True)
+    ]
+
+
+def test_vb_is_decided_on_paired_cells_not_one():
+    # One cell where ours penetrates more decides nothing; six where it does, that it does.
+    (one,) = vb_claims(_vb_cells([0.16], [0.06]))
+    assert one.holds is None and "decide nothing" in one.evidence
+    (six,) = vb_claims(_vb_cells([0.16, 0.1, 0.2, 0.12, 0.15, 0.3], [0.06] * 6))
+    assert six.holds is False and "geometry-unaware contacts, no collision terms lower in 6" in (
+        six.evidence
+    )
+    (ours_lower,) = vb_claims(_vb_cells([0.01] * 6, [0.06, 0.05, 0.2, 0.1, 0.07, 0.3]))
+    assert ours_lower.holds is True
 
 
 def test_fig6_claims_compare_all_against_none_cell_by_cell():
@@ -353,10 +370,16 @@ def test_fig6_claims_compare_all_against_none_cell_by_cell():
     ]
     convergence, penetration = fig6_claims(records)
     assert convergence.holds and "AllKeyframe 2/2, NoKeyframe 1/2" in convergence.evidence
-    assert penetration.holds  # mean 2.5 mm against 26 mm
+    assert penetration.holds is None  # one pair (yaw 0.6): too few to decide
     assert fig6_claims([])[0].holds is None
-    close = [{**r, "avg_penetration_m": 0.0004 + 0.0001 * (r["run"] == "none")} for r in records]
-    assert fig6_claims(close)[1].holds is None  # 0.1 mm apart: decides nothing
+    lower = [
+        _record(run, "converged", pen, yaw=0.2 * k)
+        for k in range(6)
+        for run, pen in (("none", 0.01 + 0.001 * k), ("all", 0.001))
+    ]
+    assert fig6_claims(lower)[1].holds is True
+    close = [{**r, "avg_penetration_m": 0.0004 + 0.0001 * (r["run"] == "none")} for r in lower]
+    assert fig6_claims(close)[1].holds is None  # 0.1 mm apart in every cell: a tie
 
 
 def test_the_figures_and_the_summary_draw_from_records():
@@ -409,7 +432,7 @@ def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
     subset = tmp_path / "params.yaml"
     with pytest.raises(ArtifactError, match="has no record"):
         report.figures_scenario(params, "tiny", tmp_path / "out", tmp_path, params_file=subset)
-    assert launched == [("tiny", "fig5", subset), ("tiny", "fig6", subset)]
+    assert launched == [("tiny", f, subset) for f in ("fig5", "fig6", "vb")]
 
 
 def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, monkeypatch):

@@ -170,3 +170,13 @@ def test_tiny_a_box_sunk_in_the_table_beside_a_standing_g1_is_not_the_headline(t
     objects = found.per_node(("object_environment",))
     assert objects[1] == pytest.approx(0.1, abs=0.01) and objects[0] < 1e-3
     assert found.contact_sum[1] > 2 * objects[1]
+
+
+def test_touching_is_not_penetrating():
+    """A sole resting on the floor within MuJoCo's round-off counts nowhere."""
+    foot = _link(
+        "left_ankle_roll_link",
+        "0 0 0.0099999999",
+        '<geom name="left_foot" type="box" size="0.1 0.04 0.01"/>',
+    )
+    assert _pairs(foot) == []

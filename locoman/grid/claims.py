@@ -1,18 +1,20 @@
 """Whether our grids reproduce paper A's qualitative claims (Sec. V), from the records.
 
 Each claim is checked as stated, with the evaluation's own penetration bounds for
-"collision-free"; a claim that the records cannot decide (a run missing or errored, or two
-penetrations within :data:`RESOLUTION_M`) is ``None``, never counted as reproduced.
+"collision-free". V-B and V-C's penetration are decided on paired cells of a grid
+(:mod:`locoman.grid.paired`); a claim that the records cannot decide (a run missing or
+errored, too few pairs, an interval that holds 0) is ``None``, never counted as reproduced.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import statistics
 from collections.abc import Sequence
 from typing import Any
 
 from locoman.config.to import EvaluateCfg
+from locoman.grid.paired import PairedComparison, paired_comparison
+from locoman.grid.runs import FIGURE_RUNS
 
 # Two average penetrations closer than this are the same for a claim [m]: a standing G1's
 # soles alone sink about 0.4 mm on average into MuJoCo's floor, and settings differ by
@@ -70,15 +72,12 @@ def _describe(record: dict[str, Any] | None) -> str:
 
 
 def fig5_claims(records: dict[str, dict[str, Any]], cfg: EvaluateCfg) -> list[Claim]:
-    """Sec. V-A and V-B, from the four runs of Fig. 5 (run name -> record)."""
+    """Sec. V-A, from Fig. 5's runs (run name -> record). Its V-B panel is one cell: V-B is
+    decided over the grid (:func:`vb_claims`)."""
     ours, naive = records.get("ours"), records.get("naive")
     free = None
     if _pen(ours) is not None and _pen(naive) is not None:
         free = collision_free(ours, cfg) and not collision_free(naive, cfg)
-    plain, unaware = records.get("ours_no_collision"), records.get("geometry_unaware")
-    more = None
-    if _pen(plain) is not None and _pen(unaware) is not None:
-        more = _less(plain["avg_penetration_m"], unaware["avg_penetration_m"])
     bounds = (
         f"collision-free: average <= {cfg.penetration_tol_m * 1000:g} mm and deepest <= "
         f"{cfg.max_penetration_tol_m * 1000:g} mm"
@@ -91,48 +90,56 @@ def fig5_claims(records: dict[str, dict[str, Any]], cfg: EvaluateCfg) -> list[Cl
             free,
             f"ours: {_describe(ours)}; naive: {_describe(naive)} ({bounds})",
         ),
-        Claim(
-            "fig5_contact_transfer",
-            "with no collision terms, geometry-unaware contacts penetrate more than ours",
-            more,
-            f"ours: {_describe(plain)}; geometry-unaware: {_describe(unaware)}",
-        ),
     ]
+
+
+def _labels(figure: str) -> dict[str, str]:
+    return {r.name: r.label for r in FIGURE_RUNS[figure]}
+
+
+def vb_comparison(records: Sequence[dict[str, Any]]) -> PairedComparison:
+    """Sec. V-B over the grid: ours against the geometry-unaware contacts, no collision
+    terms, paper A's penetration paired by cell."""
+    return paired_comparison(
+        records, "ours_no_collision", "geometry_unaware", "avg_penetration_m", RESOLUTION_M
+    )
+
+
+def vb_claims(records: Sequence[dict[str, Any]]) -> list[Claim]:
+    """Sec. V-B, decided on the paired cells of the ``vb`` grid."""
+    comparison = vb_comparison(records)
+    return [
+        Claim(
+            "vb_contact_transfer",
+            "with no collision terms, geometry-unaware contacts penetrate more than ours",
+            comparison.a_lower,
+            comparison.describe(_labels("vb")),
+        )
+    ]
+
+
+def fig6_comparison(records: Sequence[dict[str, Any]]) -> PairedComparison:
+    """Sec. V-C: AllKeyframe against NoKeyframe, paper A's penetration paired by cell."""
+    return paired_comparison(records, "all", "none", "avg_penetration_m", RESOLUTION_M)
 
 
 def fig6_claims(records: Sequence[dict[str, Any]]) -> list[Claim]:
     """Sec. V-C: AllKeyframe against NoKeyframe over the grid's cells."""
-    by = {(r["box_mass"], r["initial_yaw"], r["run"]): r for r in records}
-    cells = sorted({(r["box_mass"], r["initial_yaw"]) for r in records})
-    converged = {
-        run: sum(by.get((*c, run), {}).get("status") == "converged" for c in cells)
-        for run in ("none", "all")
-    }
-    pairs = [
-        (_pen(by.get((*c, "none"))), _pen(by.get((*c, "all"))))
-        for c in cells
-        if _pen(by.get((*c, "none"))) is not None and _pen(by.get((*c, "all"))) is not None
-    ]
-    lower = None
-    if pairs:
-        lower = _less(statistics.fmean(a for _, a in pairs), statistics.fmean(n for n, _ in pairs))
-    mean_none = statistics.fmean(n for n, _ in pairs) * 1000 if pairs else float("nan")
-    mean_all = statistics.fmean(a for _, a in pairs) * 1000 if pairs else float("nan")
+    comparison = fig6_comparison(records)
+    cells, converged = comparison.cells, comparison.converged
     return [
         Claim(
             "fig6_convergence",
             "AllKeyframe converges at least as often as NoKeyframe",
             converged["all"] >= converged["none"] if cells else None,
-            f"converged cells: AllKeyframe {converged['all']}/{len(cells)}, NoKeyframe "
-            f"{converged['none']}/{len(cells)}",
+            f"converged cells: AllKeyframe {converged['all']}/{cells}, NoKeyframe "
+            f"{converged['none']}/{cells}",
         ),
         Claim(
             "fig6_penetration",
             "AllKeyframe gives lower penetration than NoKeyframe",
-            lower,
-            f"mean average penetration over {len(pairs)} cells: AllKeyframe {mean_all:.2f} mm, "
-            f"NoKeyframe {mean_none:.2f} mm (a difference within {RESOLUTION_M * 1000:g} mm "
-            "decides nothing)",
+            comparison.a_lower,
+            comparison.describe(_labels("fig6")),
         ),
     ]
 

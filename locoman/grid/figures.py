@@ -70,7 +70,7 @@ CLASS_STYLES = {
     "self": ":",
     "robot_object": "-",
     "robot_environment": "-.",
-    "scheduled_contact": (0, (1, 3)),
+    "scheduled_contact": (0, (6, 2, 1, 2, 1, 2)),
     "object_environment": "--",
 }
 
@@ -110,15 +110,57 @@ def fig5(records: dict[str, dict[str, Any]], curves: dict[str, np.ndarray], titl
                         values * 1000,
                         ls=CLASS_STYLES[kind],
                         color=FIG5_COLOURS[run],
-                        label=f"{labels[run]}: {kind}",
+                        label=f"{run}: {kind}",
                     )
         ax.set_title(name)
         by_class.set_xlabel("time [s]")
+        ax.legend(fontsize=7)
+        by_class.legend(fontsize=6, ncol=2)
         for a in (ax, by_class):
             a.grid(alpha=0.3)
-            a.legend(fontsize=7)
     axes[0, 0].set_ylabel("penetration at the node [mm]\n(self + robot-object + robot-env.)")
     axes[1, 0].set_ylabel("per class [mm]")
+    return fig
+
+
+def vb_figure(records: Sequence[dict[str, Any]], title: str) -> Figure:
+    """V-B over a grid: per cell, ours (x) against the geometry-unaware contacts (y), paper
+    A's average penetration, both without collision terms; above the diagonal ours is lower.
+    Filled where both converged (the pairs the claim is decided on), hollow otherwise."""
+    fig = Figure(figsize=(5.5, 5), layout="constrained")
+    ax = fig.subplots()
+    by = {(r["box_mass"], r["initial_yaw"], r["run"]): r for r in records}
+    top = 0.0
+    for mass, yaw in _cell_panels(records):
+        ours, other = (
+            by.get((mass, yaw, "ours_no_collision")),
+            by.get((mass, yaw, "geometry_unaware")),
+        )
+        if not ours or not other or None in (ours["avg_penetration_m"], other["avg_penetration_m"]):
+            continue
+        x, y = ours["avg_penetration_m"] * 1000, other["avg_penetration_m"] * 1000
+        both = ours["status"] == other["status"] == "converged"
+        ax.plot(x, y, "o", ms=7, color="tab:blue", mfc="tab:blue" if both else "none")
+        ax.annotate(
+            f"{mass:g} kg, {yaw:g}", (x, y), fontsize=7, xytext=(4, 2), textcoords="offset points"
+        )
+        top = max(top, x, y)
+    top = top * 1.1 or 1.0
+    ax.plot([0, top], [0, top], color="grey", lw=0.8)
+    ax.set_xlim(0, top)
+    ax.set_ylim(0, top)
+    ax.set_xlabel("ours, no collision terms: average penetration [mm]")
+    ax.set_ylabel("geometry-unaware contacts: average penetration [mm]")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(
+        handles=[
+            Line2D([], [], ls="", marker="o", color="tab:blue", label="both converged"),
+            Line2D([], [], ls="", marker="o", mfc="none", color="tab:blue", label="one did not"),
+        ],
+        fontsize=8,
+        loc="lower right",
+    )
     return fig
 
 

@@ -3,6 +3,7 @@
 Outputs under ``data/<scenario>/figures/``::
 
     fig5.png, fig6.png        paper A's Fig. 5 and Fig. 6
+    vb.png                    V-B over Fig. 6's cells: ours against geometry-unaware, per cell
     fig5/<run>.csv            Fig. 5's curves (node, time_s, penetration_m), for dvc plots
     summary.csv               one row per run of both figures (figures.SUMMARY_COLUMNS)
     summary.md                the same as two tables, and where the paper's claims stand
@@ -25,8 +26,23 @@ from locoman.artifacts.io import write_figure
 from locoman.config.schema import RootCfg
 from locoman.errors import ArtifactError, ConfigError
 from locoman.grid.cell import cell_dir, read_record
-from locoman.grid.claims import Claim, claims_markdown, fig5_claims, fig6_claims
-from locoman.grid.figures import fig5, fig6, markdown_table, setting_table, summary_csv
+from locoman.grid.claims import (
+    Claim,
+    claims_markdown,
+    fig5_claims,
+    fig6_claims,
+    fig6_comparison,
+    vb_claims,
+    vb_comparison,
+)
+from locoman.grid.figures import (
+    fig5,
+    fig6,
+    markdown_table,
+    setting_table,
+    summary_csv,
+    vb_figure,
+)
 from locoman.grid.launch import cells, launch
 from locoman.grid.runs import KEYFRAME_RUNS
 from locoman.sim.penetration import CLASSES
@@ -143,11 +159,27 @@ def report_fig6(
             "cells": n_cells,
             "converged_rate": {name: n / n_cells for name, n in converged.items()},
             "errors": sum(r["status"] == "error" for r in records),
+            "penetration_all_vs_none": fig6_comparison(records).as_dict(),
         },
     )
 
 
-REPORTS = {"fig5": report_fig5, "fig6": report_fig6}
+def report_vb(
+    cfg: RootCfg, scenario: str, records: list[dict[str, Any]], out_dir: Path, data_dir: Path
+) -> FigureReport:
+    """V-B over the grid: ours against the geometry-unaware contacts, paired by cell."""
+    title = f"Paper A, V-B over the grid: {scenario}, no collision terms"
+    write_figure(out_dir / "vb.png", vb_figure(records, title))
+    return FigureReport(
+        name="V-B over the grid",
+        heading="V-B over the grid",
+        table=markdown_table(records),
+        claims=vb_claims(records),
+        metrics=vb_comparison(records).as_dict(),
+    )
+
+
+REPORTS = {"fig5": report_fig5, "fig6": report_fig6, "vb": report_vb}
 """The figures a scenario can have, in the summary's order: name -> report function."""
 
 

@@ -6,6 +6,8 @@ Paper A, Sec. V:
   contacts alone, no keyframes), both with the scenario's minimal collision set (the
   ``solve.collision`` section); V-B: our contact transfer against the geometry-unaware one,
   the same keyframes, every collision term off.
+- V-B over the grid (``vb``): the two V-B runs of Fig. 5 at every (box mass, initial yaw) of
+  Fig. 6's grid, so that the claim is decided on paired cells, not on one solve.
 - Fig. 6, V-C: every combination of the keyframe base cost (9), the keyframe foot cost (10)
   and the subtask-like warm start (Sec. IV-C.2), from NoKeyframe to AllKeyframe.
 
@@ -93,8 +95,15 @@ PIPELINE_RUNS = (
     ),
 )
 
+# V-B's two arms, both without any collision term (found pairs included).
+VB_RUNS = tuple(r for r in PIPELINE_RUNS if not r.collisions)
+
 # figure -> its runs, in legend order.
-FIGURE_RUNS: dict[str, tuple[Run, ...]] = {"fig5": PIPELINE_RUNS, "fig6": KEYFRAME_RUNS}
+FIGURE_RUNS: dict[str, tuple[Run, ...]] = {
+    "fig5": PIPELINE_RUNS,
+    "fig6": KEYFRAME_RUNS,
+    "vb": VB_RUNS,
+}
 
 
 def find_run(figure: str, name: str) -> Run:

@@ -27,6 +27,9 @@ from locoman.scene import g1
 from locoman.sim.audit import Body, body_of
 from locoman.sim.evaluate import ROBOT, scene_qpos
 
+# Shallower than this is touching, not penetrating [m]: MuJoCo reports a sole standing on
+# the floor at -1e-9 m and a box on a table at -1e-17 m.
+RESOLUTION_M = 1e-6
 CLASSES = ("self", "robot_object", "robot_environment", "scheduled_contact", "object_environment")
 HEADLINE = ("self", "robot_object", "robot_environment")  # paper A's penetration
 
@@ -82,11 +85,11 @@ class PairDepth:
 def pair_depths(
     model: mujoco.MjModel, data: mujoco.MjData, traj: dict, k: int, names: list[str]
 ) -> list[PairDepth]:
-    """Every penetrating geom pair of ``data`` (after ``mj_forward``) once, at its deepest
-    contact, classified with node k's schedule."""
+    """Every geom pair of ``data`` (after ``mj_forward``) deeper than :data:`RESOLUTION_M`
+    inside each other once, at its deepest contact, classified with node k's schedule."""
     deepest: dict[tuple[str, str], PairDepth] = {}
     for c in data.contact[: data.ncon]:
-        if c.dist >= 0.0:
+        if c.dist >= -RESOLUTION_M:
             continue
         a, b = body_of(model, c.geom1, names), body_of(model, c.geom2, names)
         geoms = tuple(sorted((a.geom, b.geom)))
