@@ -123,27 +123,32 @@ def fig5(records: dict[str, dict[str, Any]], curves: dict[str, np.ndarray], titl
     return fig
 
 
+VB_MARKERS = "osD^vP*X"  # one per initial yaw, in the grid's order
+
+
 def vb_figure(records: Sequence[dict[str, Any]], title: str) -> Figure:
     """V-B over a grid: per cell, ours (x) against the geometry-unaware contacts (y), paper
     A's average penetration, both without collision terms; above the diagonal ours is lower.
-    Filled where both converged (the pairs the claim is decided on), hollow otherwise."""
-    fig = Figure(figsize=(5.5, 5), layout="constrained")
+    A colour per box mass, a marker per initial yaw; filled where both converged (the pairs
+    the claim is decided on), hollow otherwise."""
+    fig = Figure(figsize=(6, 5), layout="constrained")
     ax = fig.subplots()
     by = {(r["box_mass"], r["initial_yaw"], r["run"]): r for r in records}
+    cells = _cell_panels(records)
+    masses = list(dict.fromkeys(m for m, _ in cells))
+    yaws = list(dict.fromkeys(y for _, y in cells))
+    colours = {m: f"C{k}" for k, m in enumerate(masses)}
+    markers = {y: VB_MARKERS[k % len(VB_MARKERS)] for k, y in enumerate(yaws)}
     top = 0.0
-    for mass, yaw in _cell_panels(records):
-        ours, other = (
-            by.get((mass, yaw, "ours_no_collision")),
-            by.get((mass, yaw, "geometry_unaware")),
-        )
+    for mass, yaw in cells:
+        ours = by.get((mass, yaw, "ours_no_collision"))
+        other = by.get((mass, yaw, "geometry_unaware"))
         if not ours or not other or None in (ours["avg_penetration_m"], other["avg_penetration_m"]):
             continue
         x, y = ours["avg_penetration_m"] * 1000, other["avg_penetration_m"] * 1000
         both = ours["status"] == other["status"] == "converged"
-        ax.plot(x, y, "o", ms=7, color="tab:blue", mfc="tab:blue" if both else "none")
-        ax.annotate(
-            f"{mass:g} kg, {yaw:g}", (x, y), fontsize=7, xytext=(4, 2), textcoords="offset points"
-        )
+        colour = colours[mass]
+        ax.plot(x, y, markers[yaw], ms=8, color=colour, mfc=colour if both else "none")
         top = max(top, x, y)
     top = top * 1.1 or 1.0
     ax.plot([0, top], [0, top], color="grey", lw=0.8)
@@ -153,14 +158,14 @@ def vb_figure(records: Sequence[dict[str, Any]], title: str) -> Figure:
     ax.set_ylabel("geometry-unaware contacts: average penetration [mm]")
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(
-        handles=[
-            Line2D([], [], ls="", marker="o", color="tab:blue", label="both converged"),
-            Line2D([], [], ls="", marker="o", mfc="none", color="tab:blue", label="one did not"),
-        ],
-        fontsize=8,
-        loc="lower right",
+    handles = [Patch(color=colours[m], label=f"{m:g} kg") for m in masses]
+    handles += [
+        Line2D([], [], ls="", marker=markers[y], color="black", label=f"{y:g} rad") for y in yaws
+    ]
+    handles.append(
+        Line2D([], [], ls="", marker="o", mfc="none", color="black", label="one did not converge")
     )
+    ax.legend(handles=handles, fontsize=7, loc="lower right", ncol=2)
     return fig
 
 
