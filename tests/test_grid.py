@@ -246,6 +246,71 @@ def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstre
     assert calls == {"solve": 2, "evaluate": 3}
 
 
+def _stand_ins(monkeypatch, calls: dict[str, int]) -> None:
+    """A solve and an evaluation that count their calls and write what a cell keeps."""
+
+    def solve(name, scenario, solve, upstream, out):
+        calls["solve"] += 1
+        (out / "solve").mkdir(parents=True)
+        (out / "solve" / "trajectory.npz").write_bytes(b"a trajectory")
+        return {
+            "status": "converged",
+            "reason": "",
+            "solver_status": "Solve_Succeeded",
+            "iterations": 7,
+            "solve_time_s": 1.5,
+            "collision_rounds": 1,
+            "pairs_found": 9,
+        }
+
+    def evaluate(cfg, out):
+        calls["evaluate"] += 1
+        (out / "evaluate").mkdir()
+        return {"avg_penetration_m": 0.001 * calls["evaluate"], "success": True}
+
+    monkeypatch.setattr(cell_module, "_solve", solve)
+    monkeypatch.setattr(cell_module, "_evaluate", evaluate)
+
+
+def test_rescoring_evaluates_a_kept_solve_whose_code_changed_and_solves_nothing(
+    params, upstream, monkeypatch, tmp_path
+):
+    """Issue 52: an old grid is read with a new metric without solving it again."""
+    from locoman.errors import ArtifactError
+    from locoman.grid.rescore import main, rescore
+
+    calls = {"solve": 0, "evaluate": 0}
+    _stand_ins(monkeypatch, calls)
+    data = upstream.parent
+    for cell in cells(params, "tiny", "vb"):
+        run_cell(params, cell, data)
+    assert calls == {"solve": 4, "evaluate": 4}
+    # The solve (a weight) and the evaluation (a bound) change: a plain run would solve
+    # again, a rescore evaluates the kept solve.
+    weights = dataclasses.replace(params.solve.weights, collision=10.0)
+    changed = dataclasses.replace(
+        params,
+        solve=dataclasses.replace(params.solve, weights=weights),
+        evaluate=dataclasses.replace(params.evaluate, nonholonomic_tol_mps=1e-6),
+    )
+    cell = cells(changed, "tiny", "vb")[0]
+    old = read_record(cell_dir(data, cell))
+    again = run_cell(changed, cell, data, rescore=True)
+    assert calls == {"solve": 4, "evaluate": 5}
+    assert again["rescored"] and again["solve_key"] == old["solve_key"]
+    assert again["pairs_found"] == 9 and again["avg_penetration_m"] == 0.005
+    assert run_cell(changed, cell, data, rescore=True)["skipped"]  # scored with today's
+    assert not run_cell(changed, cell, data)["reevaluated"] and calls["solve"] == 5
+    # The command scores every cell of the figure and draws it; none is solved.
+    params_file = Path(__file__).parents[1] / "params.yaml"
+    metrics = rescore("tiny", "vb", tmp_path / "out", params_file, data)
+    assert calls["solve"] == 5 and "claims" in metrics
+    assert "rounds / pairs found" in (tmp_path / "out" / "summary.md").read_text()
+    with pytest.raises(ArtifactError, match="no kept solve"):
+        run_cell(params, CellCfg("tiny", "vb", "ours_no_collision", 9.0, 0.0), data, rescore=True)
+    assert main(["tiny", "fig7", "out"]) == 2  # usage
+
+
 def test_a_cell_without_its_upstream_says_which_stage_to_run(params, tmp_path):
     from locoman.errors import ArtifactError
 

@@ -68,7 +68,15 @@ SOLVE_MODULES = (
 )
 EVALUATE_MODULES = ("locoman.sim.pipeline",)
 # What the record keeps from a solve when only the evaluation runs again.
-SOLVE_NUMBERS = ("status", "reason", "solver_status", "iterations", "solve_time_s")
+SOLVE_NUMBERS = (
+    "status",
+    "reason",
+    "solver_status",
+    "iterations",
+    "solve_time_s",
+    "collision_rounds",
+    "pairs_found",
+)
 # Statuses of a record: the TO converged, it stopped without converging (iteration or time
 # limit, infeasibility: IPOPT's status says which), or the cell could not run (the reason).
 STATUSES = ("converged", "not_converged", "error")
@@ -80,7 +88,7 @@ class CellCfg:
 
     Attributes:
         scenario: A humanoid scenario with upstream artifacts under ``data/<scenario>/``.
-        figure: ``fig5`` or ``fig6`` (:data:`locoman.grid.runs.FIGURE_RUNS`).
+        figure: ``fig5``, ``fig6`` or ``vb`` (:data:`locoman.grid.runs.FIGURE_RUNS`).
         run: One of the figure's runs.
         box_mass: Mass of the object named ``box`` [kg].
         initial_yaw: The robot's initial yaw [rad].
@@ -258,12 +266,16 @@ def _solve(
     traj = solve_scenario(
         out / "scene", upstream / "contacts", upstream / "retarget", out / "solve", solve
     )
+    solved = json.loads((out / "solve" / "metrics.json").read_text())
     return {
         "status": "converged" if traj.success else "not_converged",
         "reason": "" if traj.success else traj.status,
         "solver_status": traj.status,
         "iterations": traj.iterations,
         "solve_time_s": traj.solve_time_s,
+        # Rounds of found pairs that added any (issue 48), and how many they added.
+        "collision_rounds": sum(r["pairs_added"] > 0 for r in solved["collision_rounds"]),
+        "pairs_found": solved["pairs_found"],
     }
 
 
@@ -282,20 +294,29 @@ def _evaluate(evaluate: EvaluateCfg, out: Path) -> dict[str, Any]:
     }
 
 
-def _solved(previous: dict[str, Any] | None, solved: str, folder: Path) -> bool:
-    """The cell's last record holds a solve of today's ``solved`` key, and its trajectory."""
+def _kept(previous: dict[str, Any] | None, folder: Path) -> bool:
+    """The cell's last record holds a solve's numbers, and its trajectory is there."""
     return (
         previous is not None
-        and previous.get("solve_key") == solved
-        and all(k in previous for k in SOLVE_NUMBERS)
+        and all(k in previous for k in SOLVE_NUMBERS[:5])
         and (folder / "solve" / TRAJECTORY_FILE).is_file()
     )
 
 
-def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict[str, Any]:
+def _solved(previous: dict[str, Any] | None, solved: str, folder: Path) -> bool:
+    """The cell's last record holds a solve of today's ``solved`` key, and its trajectory."""
+    return _kept(previous, folder) and previous.get("solve_key") == solved
+
+
+def run_cell(
+    cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data"), rescore: bool = False
+) -> dict[str, Any]:
     """Run one cell unless its record is up to date; return its record. A cell whose solve
     is up to date is only evaluated again (``"reevaluated": true``); its ``wall_time_s``
-    stays the solve's, ``evaluate_wall_time_s`` is the new evaluation's [s].
+    stays the solve's, ``evaluate_wall_time_s`` is the new evaluation's [s]. With
+    ``rescore``, a cell with a kept trajectory is evaluated again even where the solve's
+    code or parameters changed since (``"rescored": true``; it keeps its old ``solve_key``,
+    so a plain run later solves it again).
 
     Whatever goes wrong inside (a solver failure, a time limit, an infeasible input, a bug)
     is recorded as the cell's status and reason, and the function returns: a grid goes on.
@@ -303,7 +324,8 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
 
     Raises:
         ConfigError: The cell's settings are invalid or the scenario is unknown.
-        ArtifactError: The upstream artifacts are missing.
+        ArtifactError: The upstream artifacts are missing; with ``rescore``, the cell has no
+            kept solve.
     """
     errors = cell.check()
     if cell.scenario not in cfg.scenarios:
@@ -318,8 +340,14 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     key = cell_key(solved, cfg.evaluate)
     final = cell_dir(data_dir, cell)
     previous = read_record(final)
+    rescored = rescore and _kept(previous, final) and not _solved(previous, solved, final)
+    if rescored:
+        solved = previous["solve_key"]
+        key = cell_key(solved, cfg.evaluate)
     if previous is not None and previous.get("key") == key:
         return {**previous, "skipped": True}
+    if rescore and not _kept(previous, final):
+        raise ArtifactError(f"{final} has no kept solve to score again: run the grid first")
     staging = staging_folder(final)
     reuse = _solved(previous, solved, final)
     if reuse:  # the scene, the solve and its log as they are; a new evaluation
@@ -333,7 +361,7 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
     with output_to(staging / LOG_FILE, append=reuse):
         try:
             if reuse:
-                numbers = {k: previous[k] for k in SOLVE_NUMBERS}
+                numbers = {k: previous[k] for k in SOLVE_NUMBERS if k in previous}
             else:
                 numbers = _solve(cell.scenario, scenario, solve, upstream, staging)
             numbers |= _evaluate(cfg.evaluate, staging)
@@ -355,6 +383,7 @@ def run_cell(cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data")) -> dict
         **finite,
         **timing,
         "reevaluated": reuse,
+        "rescored": rescored,
         "solve_key": solved,
         "key": key,
     }

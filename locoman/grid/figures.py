@@ -56,6 +56,8 @@ SUMMARY_COLUMNS = (
     "status",
     "reason",
     "iterations",
+    "collision_rounds",
+    "pairs_found",
     "avg_penetration_m",
     "max_penetration_m",
     "max_penetration_pair",
@@ -241,9 +243,9 @@ def _mm(value: float | None) -> str:
 def markdown_table(records: Sequence[dict[str, Any]]) -> str:
     """The summary of one figure as a Markdown table (penetrations in mm)."""
     head = (
-        "| run | mass [kg] | yaw [rad] | status | iterations | avg pen. [mm] | max pen. [mm] "
-        "| deepest pair | dynamics residual | goal error [mm] |\n"
-        "|---|---|---|---|---|---|---|---|---|---|\n"
+        "| run | mass [kg] | yaw [rad] | status | iterations | rounds / pairs found "
+        "| avg pen. [mm] | max pen. [mm] | deepest pair | dynamics residual | goal error [mm] |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     rows = []
     for r in records:
@@ -251,7 +253,9 @@ def markdown_table(records: Sequence[dict[str, Any]]) -> str:
         residual = r.get("dynamics_residual_max")
         rows.append(
             f"| {r['label']} | {r['box_mass']:g} | {r['initial_yaw']:g} | {status} "
-            f"| {r.get('iterations', '-')} | {_mm(r.get('avg_penetration_m'))} "
+            f"| {r.get('iterations', '-')} "
+            f"| {r.get('collision_rounds', '-')} / {r.get('pairs_found', '-')} "
+            f"| {_mm(r.get('avg_penetration_m'))} "
             f"| {_mm(r.get('max_penetration_m'))} "
             f"| {' / '.join(r.get('max_penetration_pair') or []) or '-'} "
             f"| {'-' if residual is None else f'{residual:.1e}'} "

@@ -206,6 +206,23 @@ def figures_scenario(
         tic = time.perf_counter()
         launch(scenario, figure, params_file=params_file)
         seconds[figure] = time.perf_counter() - tic
+    return draw(cfg, scenario, figures, out_dir, data_dir, seconds)
+
+
+def draw(
+    cfg: RootCfg,
+    scenario: str,
+    figures: Sequence[str],
+    out_dir: Path,
+    data_dir: Path = Path("data"),
+    seconds: dict[str, float] | None = None,
+) -> dict[str, Any]:
+    """Draw and summarise ``figures`` from their cells' records into ``out_dir``; return the
+    metrics. ``seconds``: each grid's wall time [s], for ``timing.json`` (None: not written).
+
+    Raises:
+        ArtifactError: A cell has no record.
+    """
     records = {f: collect(cfg, scenario, f, data_dir) for f in figures}
     reports = {f: REPORTS[f](cfg, scenario, records[f], out_dir, data_dir) for f in figures}
 
@@ -224,13 +241,14 @@ def figures_scenario(
         "claims": {c.key: c.holds for c in claims}
     }
     write_metrics(out_dir, metrics)
-    write_json_atomic(
-        out_dir / "timing.json",
-        {
-            "grid_wall_time_s": seconds,
-            "cells_wall_time_s": {
-                f: sum(r.get("wall_time_s", 0.0) for r in records[f]) for f in figures
+    if seconds is not None:
+        write_json_atomic(
+            out_dir / "timing.json",
+            {
+                "grid_wall_time_s": seconds,
+                "cells_wall_time_s": {
+                    f: sum(r.get("wall_time_s", 0.0) for r in records[f]) for f in figures
+                },
             },
-        },
-    )
+        )
     return metrics
