@@ -303,7 +303,10 @@ def test_rescoring_evaluates_a_kept_solve_whose_code_changed_and_solves_nothing(
     assert not run_cell(changed, cell, data)["reevaluated"] and calls["solve"] == 5
     # The command scores every cell of the figure and draws it; none is solved.
     params_file = Path(__file__).parents[1] / "params.yaml"
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "timing.json").write_text('{"grid_wall_time_s": {"vb": 60.0}}')
     metrics = rescore("tiny", "vb", tmp_path / "out", params_file, data)
+    assert "60.0" in (tmp_path / "out" / "timing.json").read_text()  # the run's, kept
     assert calls["solve"] == 5 and "claims" in metrics
     assert "rounds / pairs found" in (tmp_path / "out" / "summary.md").read_text()
     with pytest.raises(ArtifactError, match="no kept solve"):

@@ -218,7 +218,8 @@ def draw(
     seconds: dict[str, float] | None = None,
 ) -> dict[str, Any]:
     """Draw and summarise ``figures`` from their cells' records into ``out_dir``; return the
-    metrics. ``seconds``: each grid's wall time [s], for ``timing.json`` (None: not written).
+    metrics. ``seconds``: each grid's wall time [s], for ``timing.json`` (None: the one there
+    is kept).
 
     Raises:
         ArtifactError: A cell has no record.
@@ -240,7 +241,12 @@ def draw(
     metrics = {f: r.metrics for f, r in reports.items()} | {
         "claims": {c.key: c.holds for c in claims}
     }
+    timing = out_dir / "timing.json"
+    # Redrawn without running: the grid's wall times stay those of the run that made it.
+    kept = timing.read_text() if seconds is None and timing.is_file() else None
     write_metrics(out_dir, metrics)
+    if kept is not None:
+        write_text_atomic(timing, kept)
     if seconds is not None:
         write_json_atomic(
             out_dir / "timing.json",
