@@ -196,10 +196,8 @@ def test_a_failing_cell_is_recorded_and_a_rerun_skips_it(params, upstream):
     assert "error (ArtifactError" in summary(again)
 
 
-def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstream, monkeypatch):
-    """Stand-ins for the solve and the evaluation count their calls: a new evaluation
-    parameter reruns the evaluation on the kept trajectory and log, a solve parameter both."""
-    calls = {"solve": 0, "evaluate": 0}
+def _stand_ins(monkeypatch, calls: dict[str, int]) -> None:
+    """A solve and an evaluation that count their calls and write what a cell keeps."""
 
     def solve(name, scenario, solve, upstream, out):
         calls["solve"] += 1
@@ -212,6 +210,8 @@ def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstre
             "solver_status": "Solve_Succeeded",
             "iterations": 7,
             "solve_time_s": 1.5,
+            "collision_rounds": 1,
+            "pairs_found": 9,
         }
 
     def evaluate(cfg, out):
@@ -222,6 +222,13 @@ def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstre
 
     monkeypatch.setattr(cell_module, "_solve", solve)
     monkeypatch.setattr(cell_module, "_evaluate", evaluate)
+
+
+def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstream, monkeypatch):
+    """Stand-ins for the solve and the evaluation count their calls: a new evaluation
+    parameter reruns the evaluation on the kept trajectory and log, a solve parameter both."""
+    calls = {"solve": 0, "evaluate": 0}
+    _stand_ins(monkeypatch, calls)
     data, cell = upstream.parent, CellCfg("tiny", "fig6", "all", 5.0, 0.0)
     first = run_cell(params, cell, data)
     assert calls == {"solve": 1, "evaluate": 1} and not first["reevaluated"]
@@ -244,32 +251,6 @@ def test_a_cell_whose_solve_is_up_to_date_is_only_evaluated_again(params, upstre
     )
     assert not run_cell(other, cell, data)["reevaluated"]
     assert calls == {"solve": 2, "evaluate": 3}
-
-
-def _stand_ins(monkeypatch, calls: dict[str, int]) -> None:
-    """A solve and an evaluation that count their calls and write what a cell keeps."""
-
-    def solve(name, scenario, solve, upstream, out):
-        calls["solve"] += 1
-        (out / "solve").mkdir(parents=True)
-        (out / "solve" / "trajectory.npz").write_bytes(b"a trajectory")
-        return {
-            "status": "converged",
-            "reason": "",
-            "solver_status": "Solve_Succeeded",
-            "iterations": 7,
-            "solve_time_s": 1.5,
-            "collision_rounds": 1,
-            "pairs_found": 9,
-        }
-
-    def evaluate(cfg, out):
-        calls["evaluate"] += 1
-        (out / "evaluate").mkdir()
-        return {"avg_penetration_m": 0.001 * calls["evaluate"], "success": True}
-
-    monkeypatch.setattr(cell_module, "_solve", solve)
-    monkeypatch.setattr(cell_module, "_evaluate", evaluate)
 
 
 def test_rescoring_evaluates_a_kept_solve_whose_code_changed_and_solves_nothing(
@@ -298,7 +279,7 @@ def test_rescoring_evaluates_a_kept_solve_whose_code_changed_and_solves_nothing(
     again = run_cell(changed, cell, data, rescore=True)
     assert calls == {"solve": 4, "evaluate": 5}
     assert again["rescored"] and again["solve_key"] == old["solve_key"]
-    assert again["pairs_found"] == 9 and again["avg_penetration_m"] == 0.005
+    assert again["pairs_found"] == 9 and again["avg_penetration_m"] == 1e-6
     assert run_cell(changed, cell, data, rescore=True)["skipped"]  # scored with today's
     assert not run_cell(changed, cell, data)["reevaluated"] and calls["solve"] == 5
     # The command scores every cell of the figure and draws it; none is solved.
