@@ -386,6 +386,13 @@ def test_fig5_claims_follow_the_evaluations_bounds():
     }
     (minimal,) = fig5_claims(runs, cfg)
     assert minimal.holds is True and "naive: not_converged" in minimal.evidence
+    # Converged and low on paper A's headline, but a hand 56 mm inside the box it holds.
+    deep_hand = ["scheduled_contact_penetration"]
+    runs["naive"] = {**_record("naive", pen=0.0001), "failed_checks": deep_hand}
+    (minimal,) = fig5_claims(runs, cfg)
+    assert minimal.holds is True and "failed scheduled_contact_penetration" in minimal.evidence
+    runs["naive"] = {**runs["naive"], "failed_checks": []}
+    assert fig5_claims(runs, cfg)[0].holds is False
     runs["naive"] = {**runs["naive"], "status": "error", "reason": "boom"}
     assert fig5_claims(runs, cfg)[0].holds is None
 

@@ -52,11 +52,18 @@ def _pen(record: dict[str, Any] | None) -> float | None:
     return record.get("avg_penetration_m")
 
 
+# The evaluation's checks of the classes beside paper A's headline: a hand deep inside the
+# box it holds (naive contacts put it there) is a robot-object collision all the same.
+CLASS_CHECKS = ("scheduled_contact_penetration", "object_penetration")
+
+
 def collision_free(record: dict[str, Any], cfg: EvaluateCfg) -> bool:
-    """The evaluation's penetration checks: average and deepest penetration within bounds."""
+    """The evaluation's penetration checks: average and deepest penetration within bounds,
+    and no scheduled contact or object deeper than its own bound."""
     return (
         record["avg_penetration_m"] <= cfg.penetration_tol_m
         and record["max_penetration_m"] <= cfg.max_penetration_tol_m
+        and not set(CLASS_CHECKS) & set(record.get("failed_checks", ()))
     )
 
 
@@ -65,9 +72,11 @@ def _describe(record: dict[str, Any] | None) -> str:
         return "not run"
     if record["status"] == "error":
         return f"error ({record['reason']})"
+    failed = [c for c in CLASS_CHECKS if c in record.get("failed_checks", ())]
     return (
         f"{record['status']}, average {record['avg_penetration_m'] * 1000:.1f} mm, deepest "
         f"{record['max_penetration_m'] * 1000:.1f} mm"
+        + (f", failed {' and '.join(failed)}" if failed else "")
     )
 
 
@@ -79,8 +88,10 @@ def fig5_claims(records: dict[str, dict[str, Any]], cfg: EvaluateCfg) -> list[Cl
     if _pen(ours) is not None and _pen(naive) is not None:
         free = collision_free(ours, cfg) and not collision_free(naive, cfg)
     bounds = (
-        f"collision-free: average <= {cfg.penetration_tol_m * 1000:g} mm and deepest <= "
-        f"{cfg.max_penetration_tol_m * 1000:g} mm"
+        f"collision-free: average <= {cfg.penetration_tol_m * 1000:g} mm, deepest <= "
+        f"{cfg.max_penetration_tol_m * 1000:g} mm, scheduled contacts <= "
+        f"{cfg.scheduled_contact_tol_m * 1000:g} mm, objects <= "
+        f"{cfg.object_penetration_tol_m * 1000:g} mm"
     )
     return [
         Claim(
