@@ -36,6 +36,9 @@ class Keyframe:
         support_height: [m] that support's surface height (world z, or in the supporting
             object's frame for :class:`OnObject`).
         step_height: [m] world height of the top face a ``step`` puts the feet on.
+        feet_xy: (2, 2) x, y [m] of the left and right foot contacts that (10) aims at, where
+            they differ from the keyframe's soles (the naive baseline's feet on an object,
+            Sec. V-B); None: the keyframe's soles.
     """
 
     predicate: str
@@ -46,6 +49,12 @@ class Keyframe:
     support: Support | None = None
     support_height: float = 0.0
     step_height: float = 0.0
+    feet_xy: np.ndarray | None = None
+
+    def foot_midpoint(self) -> np.ndarray:
+        """(2,) x, y [m] of the feet's midpoint that (10) aims at."""
+        feet = sole_points(self.q35)[:, :2] if self.feet_xy is None else self.feet_xy
+        return feet.mean(axis=0)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from locoman.to.inputs import TOInputs, base_yaw, sole_points
+from locoman.to.inputs import TOInputs, base_yaw
 from locoman.to.layout import NodeLayout
 from locoman.to.modes import node_modes, stood_on, supports_per_node
 from locoman.to.schedule import Schedule
@@ -50,7 +50,7 @@ def node_parameters(
             until = min((k for k in swings if k > node), default=nodes[-1] + 1)
             stance = [k for k in nodes if after < k < until]
             P[par["kf_foot_on"], stance] = 1.0
-            P[par["kf_foot"], stance] = sole_points(kf.q35)[:, :2].mean(axis=0)[:, None]
+            P[par["kf_foot"], stance] = kf.foot_midpoint()[:, None]
         if kf.goal is not None:
             P[opar(kf.object, "goal"), nodes[-1]] = kf.goal
             P[opar(kf.object, "goal_on"), nodes[-1]] = 1.0

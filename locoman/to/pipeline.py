@@ -28,7 +28,7 @@ from locoman.to.collision import obstacles_from_objects
 from locoman.to.compile import cache_dir
 from locoman.to.inputs import Keyframe, TOInputs, object_pose
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
-from locoman.to.layout import HANDS, ObjectModel
+from locoman.to.layout import FEET, HANDS, ObjectModel
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
 from locoman.to.pair_search import Round, Scene, search
 from locoman.to.schedule import Schedule
@@ -122,6 +122,30 @@ def _hand_contacts(
     return contacts[points_field][rows], frames
 
 
+def _feet_on_object(contacts_dir: Path, subtask: int, contacts: str) -> np.ndarray | None:
+    """(2, 2) x, y [m] of the left and right foot contacts of one subtask, when ``contacts``
+    is the naive baseline and contact transfer put the feet on the object (S1's step);
+    None otherwise.
+
+    The TO takes the feet from the keyframe, which retargeting placed at the transferred
+    contacts; the baseline's feet are the semantic model's output instead (paper A, Sec. V-A:
+    "the contact locations of the hands or feet, depending on the task"). A foot on the
+    floor is not a semantic match of the object, so it keeps the keyframe's sole.
+    """
+    if contacts == "registration":
+        return None
+    points_field, _ = CONTACT_FIELDS[contacts]
+    data = read_npz(contact_file(contacts_dir, subtask), CONTACTS)
+    effectors = [str(e) for e in data["effectors"]]
+    if any(f not in effectors for f in FEET):
+        return None
+    rows = [effectors.index(f) for f in FEET]
+    if any(str(data["surfaces"][r]) != "object" for r in rows):
+        return None
+    T = data["T_world_object"]
+    return (data[points_field][rows] @ T[:3, :3].T + T[:3, 3])[:, :2]
+
+
 def load_inputs(
     scene_dir: Path, contacts_dir: Path, retarget_dir: Path, contacts: str = "registration"
 ) -> TOInputs:
@@ -129,7 +153,8 @@ def load_inputs(
     on; per subtask its keyframe (every object where the plan left it), goal and, for a
     ``place``, what it sets its object on. The hands hold an object at the contacts of the
     first subtask that touches it, of the method ``contacts`` (a key of
-    :data:`CONTACT_FIELDS`)."""
+    :data:`CONTACT_FIELDS`); the naive baseline's feet on an object replace the keyframe's
+    in (10)."""
     fields = CONTACT_FIELDS[contacts]
     plan = load_plan(scene_dir)
     specs = load_objects(scene_dir)
@@ -165,10 +190,21 @@ def load_inputs(
         if j is not None and sub["object"] not in touched and hands:
             touched.add(sub["object"])
             points[j], frames[j] = _hand_contacts(contacts_dir, sub["index"], fields)
+        feet = None
+        if any("foot" in c for c in sub["contacts"]):
+            feet = _feet_on_object(contacts_dir, sub["index"], contacts)
         object_poses = np.array([object_pose(poses[name]) for name in names])
         keyframes.append(
             Keyframe(
-                sub["predicate"], kf["q35"], j, object_poses, goal, support, height, step_height
+                sub["predicate"],
+                kf["q35"],
+                j,
+                object_poses,
+                goal,
+                support,
+                height,
+                step_height,
+                feet,
             )
         )
     obstacles = obstacles_from_objects(specs)
