@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from locoman.config import load_params
+from locoman.config.to import scenario_solve
 from locoman.stage import DATA_DIR, StageOutputs, run_stage
 from locoman.to.pipeline import solve_scenario
 
@@ -27,7 +28,7 @@ def main(outputs: StageOutputs, scenario: str) -> Path:
         root / "contacts",
         root / "retarget",
         out,
-        cfg.solve,
+        scenario_solve(cfg.solve, scenario),
     )
     return out
 

@@ -60,10 +60,10 @@ def test_fig6_has_every_keyframe_combination_from_none_to_all():
 
 def test_a_run_sets_only_its_switches():
     solve = SolveCfg()
-    naive = find_run("fig5", "naive").apply(solve)
+    naive = find_run("fig5", "naive").apply(solve, "tiny")
     assert (naive.keyframe_base, naive.keyframe_foot, naive.solver.warm_start) == (False,) * 3
     assert naive.contacts == "naive" and naive.collision == solve.collision
-    off = find_run("fig5", "geometry_unaware").apply(solve)
+    off = find_run("fig5", "geometry_unaware").apply(solve, "tiny")
     assert all(getattr(off.collision, k) == "off" for k in KINDS)
     assert off.keyframe_base and off.solver.warm_start
     assert solve.contacts == "registration" and solve.collision.object_body == "penalty"

@@ -56,13 +56,14 @@ def test_regularization_penalises_the_timestep_and_base_height():
     assert _value(cost) == pytest.approx(100 * 0.01 + 100 * 0.01**2)
 
 
-def test_averaging_over_nodes_divides_stage_weights_but_not_keyframes_or_references():
+def test_averaging_over_nodes_divides_stage_weights_but_not_9_or_references():
+    """(14a): (10) is part of the stance cost L_st, so it is averaged; (9) is summed."""
     averaged = averaged_over_nodes(W, 50)
     assert averaged.com_over_feet == pytest.approx(W.com_over_feet / 50)
     assert averaged.slack == pytest.approx(W.slack / 50)
     assert averaged.collision == pytest.approx(W.collision / 50)
     assert averaged.keyframe_base == W.keyframe_base
-    assert averaged.keyframe_foot == W.keyframe_foot
+    assert averaged.keyframe_foot == pytest.approx(W.keyframe_foot / 50)
     assert averaged.object_goal == W.object_goal
     assert (averaged.clearance_m, averaged.base_height_m, averaged.timestep_s) == (
         W.clearance_m,

@@ -7,13 +7,15 @@ warm start, all) are the switches ``keyframe_base``, ``keyframe_foot`` and
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
 from locoman.config.cost import at_most
 from locoman.contact.io import CONTACT_FIELDS
+from locoman.errors import ConfigError
 from locoman.to.assembly import HESSIANS
-from locoman.to.collision import CollisionCfg
+from locoman.to.collision import KINDS, TREATMENTS, CollisionCfg
 from locoman.to.costs import CostWeights
 from locoman.to.schedule import ScheduleCfg
 
@@ -123,6 +125,39 @@ class SolverCfg:
         return errors
 
 
+# ``solve.mode``: ``product`` runs the settings as given; ``paper_a`` runs each scenario as
+# paper A's Sec. V-A and V-C did (``solve.paper_a``), for the faithful V-C grid.
+MODES = ("product", "paper_a")
+
+
+@dataclass
+class PaperSetCfg:
+    """One scenario's TO as paper A ran it in Sec. V-A and V-C (``solve.mode: paper_a``).
+
+    Attributes:
+        collision: Sec. V-A's minimal set: collision kind -> treatment (the kinds of
+            :class:`~locoman.to.collision.CollisionCfg`); every other kind is off and no
+            pairs are found along the solution.
+        keyframes: The subtasks (plan indices) whose keyframes guide the TO; null: all
+            (:attr:`SolveCfg.keyframes`).
+    """
+
+    collision: dict[str, str] = field(default_factory=dict)
+    keyframes: list[int] | None = None
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        for kind, treatment in self.collision.items():
+            if kind not in KINDS or kind.startswith("found"):
+                known = [k for k in KINDS if not k.startswith("found")]
+                errors.append(("collision", f"{kind!r} is not a collision kind; known: {known}"))
+            elif treatment not in TREATMENTS:
+                errors.append(("collision", f"{kind}: must be one of {list(TREATMENTS)}"))
+        if self.keyframes is not None and (not self.keyframes or min(self.keyframes) < 0):
+            errors.append(("keyframes", "needs subtask indices >= 0, or null for all"))
+        return errors
+
+
 @dataclass
 class SolveCfg:
     """Stage ``solve``: the TO of each listed scenario.
@@ -133,7 +168,14 @@ class SolveCfg:
         keyframe_base: Keyframe base cost (9) on.
         keyframe_foot: Keyframe foot cost (10) on.
         contacts: Where the hands hold the object: ``registration`` (the transferred
-            contacts, Sec. III-A.2) or ``naive`` (the geometry-unaware baseline, Sec. V-B).
+            contacts, Sec. III-A.2) or ``naive`` (the geometry-unaware baseline, Sec. V-B,
+            which swaps the feet on an object too).
+        keyframes: The subtasks (plan indices) whose keyframes guide the TO: (9), (10) and
+            the warm start; null: all. The others still give the contact schedule and
+            the yaw reference; their nodes start at the next guiding keyframe.
+        mode: A key of :data:`MODES`: ``product`` (these settings) or ``paper_a`` (each
+            scenario as paper A ran it: :func:`scenario_solve`).
+        paper_a: Per scenario, paper A's collision set and keyframes for ``paper_a``.
         schedule: Node counts of the contact schedule.
         contact: Contact parameters.
         collision: Collision terms (Sec. IV-D).
@@ -146,6 +188,9 @@ class SolveCfg:
     keyframe_base: bool = True
     keyframe_foot: bool = True
     contacts: str = "registration"
+    keyframes: list[int] | None = None
+    mode: str = "product"
+    paper_a: dict[str, PaperSetCfg] = field(default_factory=dict)
     schedule: ScheduleCfg = field(default_factory=ScheduleCfg)
     contact: ContactCfg = field(default_factory=ContactCfg)
     collision: CollisionCfg = field(default_factory=CollisionCfg)
@@ -154,9 +199,42 @@ class SolveCfg:
     cache_dir: str = ".cache/casadi"
 
     def check(self) -> list[tuple[str, str]]:
+        errors = []
         if self.contacts not in CONTACT_FIELDS:
-            return [("contacts", f"must be one of {sorted(CONTACT_FIELDS)}")]
-        return []
+            errors.append(("contacts", f"must be one of {sorted(CONTACT_FIELDS)}"))
+        if self.mode not in MODES:
+            errors.append(("mode", f"must be one of {list(MODES)}"))
+        if self.keyframes is not None and (not self.keyframes or min(self.keyframes) < 0):
+            errors.append(("keyframes", "needs subtask indices >= 0, or null for all"))
+        return errors
+
+
+def scenario_solve(solve: SolveCfg, scenario: str) -> SolveCfg:
+    """The ``solve`` settings that ``scenario`` runs with: in mode ``product`` as given; in
+    ``paper_a`` paper A's (Sec. V-A, V-C, (14a)): the scenario's minimal collision set with
+    every other kind off and no found pairs, the stage and collision costs and (10) averaged
+    over the nodes, and the scenario's keyframes.
+
+    Raises:
+        ConfigError: ``paper_a`` for a scenario that ``solve.paper_a`` does not describe.
+    """
+    if solve.mode == "product":
+        return solve
+    if scenario not in solve.paper_a:
+        raise ConfigError(
+            f"solve.mode is paper_a, but solve.paper_a has no set for {scenario!r} (it has "
+            f"{sorted(solve.paper_a)}): add one in conf/solve/, or run mode product"
+        )
+    paper = solve.paper_a[scenario]
+    collision = dataclasses.replace(
+        solve.collision, **(dict.fromkeys(KINDS, "off") | paper.collision)
+    )
+    return dataclasses.replace(
+        solve,
+        keyframes=paper.keyframes,
+        collision=collision,
+        weights=dataclasses.replace(solve.weights, average_over_nodes=True),
+    )
 
 
 @dataclass

@@ -335,7 +335,7 @@ def run_cell(
     run = find_run(cell.figure, cell.run)
     upstream = Path(data_dir) / cell.scenario
     scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
-    solve = with_time_limit(run.apply(cfg.solve), cfg.figures.time_limit_s)
+    solve = with_time_limit(run.apply(cfg.solve, cell.scenario), cfg.figures.time_limit_s)
     solved = solve_key(cell, scenario, solve, upstream)
     key = cell_key(solved, cfg.evaluate)
     final = cell_dir(data_dir, cell)

@@ -175,6 +175,25 @@ def _cell_panels(records: Sequence[dict[str, Any]]) -> list[tuple[float, float]]
     return list(dict.fromkeys((r["box_mass"], r["initial_yaw"]) for r in records))
 
 
+# IPOPT's statuses, as a hatched bar of Fig. 6 says why the cell did not converge.
+SHORT_REASONS = {
+    "Maximum_Iterations_Exceeded": "iter",
+    "Maximum_WallTime_Exceeded": "time",
+    "Maximum_CpuTime_Exceeded": "time",
+    "Infeasible_Problem_Detected": "infeas",
+    "Restoration_Failed": "restor",
+    "Diverging_Iterates": "diverg",
+    "Error_In_Step_Computation": "step",
+    "Search_Direction_Becomes_Too_Small": "dir",
+    "Invalid_Number_Detected": "nan",
+}
+
+
+def short_reason(reason: str) -> str:
+    """A few letters for IPOPT's status (or the reason's first word)."""
+    return SHORT_REASONS.get(reason, reason.split(" ")[0][:6] or "?")
+
+
 def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figure:
     """Fig. 6 of one scenario: a panel per (mass, yaw), a bar per keyframe setting."""
     panels = _cell_panels(records)
@@ -196,6 +215,9 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
             value = record["avg_penetration_m"] * 1000
             hatch = None if record["status"] == "converged" else "//"
             ax.bar(k, min(value, bound_mm), color=colour, hatch=hatch, edgecolor="black", lw=0.5)
+            if hatch is not None:
+                why = short_reason(str(record.get("reason") or record["status"]))
+                ax.text(k, bound_mm * 0.02, why, rotation=90, ha="center", va="bottom", fontsize=7)
             if value > bound_mm:
                 ax.plot(k, bound_mm, "^", color="black", ms=8)
         ax.set_title(f"({mass:g} kg, {yaw:g} rad)")
@@ -208,7 +230,12 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
         ax.set_ylabel("average penetration [mm]")
     handles = [Patch(color=FIG6_COLOURS[r.name], label=r.label) for r in KEYFRAME_RUNS]
     handles += [
-        Patch(facecolor="white", edgecolor="black", hatch="//", label="not converged"),
+        Patch(
+            facecolor="white",
+            edgecolor="black",
+            hatch="//",
+            label="not converged (why: iter, time, infeas, restor, diverg)",
+        ),
         Line2D([], [], ls="", marker="^", color="black", label="beyond the axis bound"),
         Line2D([], [], ls="", marker="x", color="black", label="could not run"),
     ]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +106,10 @@ class FigureReport:
     """Its part of ``metrics.json``."""
 
 
+# A figure's report: (configuration, scenario, its cells' records, out_dir, data_dir).
+ReportFunction = Callable[[RootCfg, str, list[dict[str, Any]], Path, Path], FigureReport]
+
+
 def report_fig5(
     cfg: RootCfg, scenario: str, records: list[dict[str, Any]], out_dir: Path, data_dir: Path
 ) -> FigureReport:
@@ -137,24 +141,34 @@ def report_fig5(
     )
 
 
-def report_fig6(
-    cfg: RootCfg, scenario: str, records: list[dict[str, Any]], out_dir: Path, data_dir: Path
-) -> FigureReport:
-    """Fig. 6: the keyframe ablation's bars (PNG) and its convergence rate per setting."""
-    bound = cfg.figures.grids[scenario].axis_bound_m
-    title = f"Paper A, Fig. 6: {scenario}, keyframe ablation (box mass, initial yaw)"
-    write_figure(out_dir / "fig6.png", fig6(records, bound, title))
+def _keyframe_report(figure: str, name: str, setting: str) -> ReportFunction:
+    """The report of a keyframe ablation grid ``figure`` (Fig. 6, in the product's or in
+    paper A's settings): its bars (``<figure>.png``) and its convergence rate per setting."""
+
+    def report(
+        cfg: RootCfg, scenario: str, records: list[dict[str, Any]], out_dir: Path, data_dir: Path
+    ) -> FigureReport:
+        bound = cfg.figures.grids[scenario].axis_bound_m
+        title = f"Paper A, Fig. 6: {scenario}, keyframe ablation{setting} (box mass, initial yaw)"
+        write_figure(out_dir / f"{figure}.png", fig6(records, bound, title))
+        return _fig6_report(name, figure, records)
+
+    report.__doc__ = f"{name}: the keyframe ablation{setting}, bars and convergence per setting."
+    return report
+
+
+def _fig6_report(name: str, figure: str, records: list[dict[str, Any]]) -> FigureReport:
     n_cells = len(records) // len(KEYFRAME_RUNS)
     converged = {
         run.name: sum(r["status"] == "converged" for r in records if r["run"] == run.name)
         for run in KEYFRAME_RUNS
     }
     return FigureReport(
-        name="Fig. 6",
-        heading="Fig. 6",
+        name=name,
+        heading=name,
         table=f"Per setting, over {n_cells} cells:\n\n{setting_table(records)}\n"
         f"Per run:\n\n{markdown_table(records)}",
-        claims=fig6_claims(records),
+        claims=fig6_claims(records, figure),
         metrics={
             "cells": n_cells,
             "converged_rate": {name: n / n_cells for name, n in converged.items()},
@@ -179,8 +193,21 @@ def report_vb(
     )
 
 
-REPORTS = {"fig5": report_fig5, "fig6": report_fig6, "vb": report_vb}
+REPORTS: dict[str, ReportFunction] = {
+    "fig5": report_fig5,
+    "fig6": _keyframe_report("fig6", "Fig. 6", ""),
+    "vb": report_vb,
+    "fig6_paper": _keyframe_report(
+        "fig6_paper", "Fig. 6, paper A's settings", " in paper A's settings"
+    ),
+}
 """The figures a scenario can have, in the summary's order: name -> report function."""
+
+
+def default_figures(cfg: RootCfg, scenario: str) -> list[str]:
+    """The figures the ``figures`` stage draws for ``scenario``: every one it can run
+    (``fig6_paper`` where ``solve.paper_a`` describes the scenario)."""
+    return [f for f in REPORTS if f != "fig6_paper" or scenario in cfg.solve.paper_a]
 
 
 def figures_scenario(
@@ -189,14 +216,17 @@ def figures_scenario(
     out_dir: Path,
     data_dir: Path = Path("data"),
     params_file: Path = Path("params.yaml"),
-    figures: Sequence[str] = tuple(REPORTS),
+    figures: Sequence[str] | None = None,
 ) -> dict[str, Any]:
-    """Run the grids of ``figures`` for ``scenario`` (cells up to date are skipped), draw,
-    summarise; return the metrics. ``cfg`` is ``params_file``'s, which the cells read.
+    """Run the grids of ``figures`` (None: :func:`default_figures`) for ``scenario`` (cells
+    up to date are skipped), draw, summarise; return the metrics. ``cfg`` is
+    ``params_file``'s, which the cells read.
 
     Raises:
         ConfigError: An unknown figure.
     """
+    if figures is None:
+        figures = default_figures(cfg, scenario)
     unknown = set(figures) - set(REPORTS)
     if unknown:
         raise ConfigError(f"unknown figures {sorted(unknown)}; known: {list(REPORTS)}")

@@ -10,6 +10,9 @@ Paper A, Sec. V:
   Fig. 6's grid, so that the claim is decided on paired cells, not on one solve.
 - Fig. 6, V-C: every combination of the keyframe base cost (9), the keyframe foot cost (10)
   and the subtask-like warm start (Sec. IV-C.2), from NoKeyframe to AllKeyframe.
+- Fig. 6 as the paper ran it (``fig6_paper``): the same eight settings in
+  ``solve.mode: paper_a`` (Sec. V-A's minimal set alone, (14a)'s averaging, the paper's
+  keyframes: :func:`locoman.config.to.scenario_solve`).
 
 A run changes only the switches of :class:`~locoman.config.to.SolveCfg`; everything else comes
 from the pipeline's parameters. "No keyframes" keeps the contact schedule, which the TO
@@ -22,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 
-from locoman.config.to import SolveCfg
+from locoman.config.to import SolveCfg, scenario_solve
 from locoman.errors import ConfigError
 from locoman.to.collision import KINDS
 
@@ -41,6 +44,7 @@ class Run:
         contacts: ``registration`` or ``naive`` (a key of
             :data:`locoman.contact.io.CONTACT_FIELDS`).
         collisions: The configured collision terms; False turns every kind off.
+        mode: ``solve.mode`` of the run (a key of :data:`locoman.config.to.MODES`).
     """
 
     name: str
@@ -50,9 +54,15 @@ class Run:
     warm_start: bool = True
     contacts: str = "registration"
     collisions: bool = True
+    mode: str = "product"
 
-    def apply(self, solve: SolveCfg) -> SolveCfg:
-        """``solve`` with this run's switches."""
+    def apply(self, solve: SolveCfg, scenario: str) -> SolveCfg:
+        """``solve`` with this run's mode for ``scenario`` and its switches.
+
+        Raises:
+            ConfigError: The mode has no settings for ``scenario``.
+        """
+        solve = scenario_solve(dataclasses.replace(solve, mode=self.mode), scenario)
         collision = solve.collision
         if not self.collisions:
             collision = dataclasses.replace(collision, **dict.fromkeys(KINDS, "off"))
@@ -66,7 +76,7 @@ class Run:
         )
 
 
-def _keyframe_runs() -> tuple[Run, ...]:
+def _keyframe_runs(mode: str = "product") -> tuple[Run, ...]:
     """The 8 settings of Fig. 6, NoKeyframe first, AllKeyframe last, singles before pairs."""
     parts = (("base", "Base"), ("foot", "Foot"), ("warm", "WarmStart"))
     combos = sorted(itertools.product((False, True), repeat=3), key=lambda c: (sum(c), c[::-1]))
@@ -77,11 +87,12 @@ def _keyframe_runs() -> tuple[Run, ...]:
         label = "+".join(p[1] for p in chosen) or "NoKeyframe"
         if all(on):
             name, label = "all", "AllKeyframe"
-        runs.append(Run(name, label, on[0], on[1], on[2]))
+        runs.append(Run(name, label, on[0], on[1], on[2], mode=mode))
     return tuple(runs)
 
 
 KEYFRAME_RUNS = _keyframe_runs()
+PAPER_KEYFRAME_RUNS = _keyframe_runs("paper_a")
 
 PIPELINE_RUNS = (
     Run("ours", "ours"),
@@ -103,6 +114,7 @@ FIGURE_RUNS: dict[str, tuple[Run, ...]] = {
     "fig5": PIPELINE_RUNS,
     "fig6": KEYFRAME_RUNS,
     "vb": VB_RUNS,
+    "fig6_paper": PAPER_KEYFRAME_RUNS,
 }
 
 

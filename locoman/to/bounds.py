@@ -10,7 +10,7 @@ import pinocchio as pin
 from locoman.config.to import SolverCfg
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
-from locoman.to.inputs import TOInputs
+from locoman.to.inputs import TOInputs, guiding_keyframe
 from locoman.to.layout import NodeLayout
 from locoman.to.modes import NodeMode
 from locoman.to.schedule import Schedule
@@ -142,7 +142,7 @@ def push_shift(inputs: TOInputs, schedule: Schedule, k: int) -> np.ndarray:
     subtask = schedule.subtask_of(k)
     kf = inputs.keyframes[subtask]
     node = schedule.keyframe_nodes()[subtask]
-    if kf.predicate != "push" or kf.goal is None or k <= node:
+    if kf.predicate != "push" or not kf.guides or kf.goal is None or k <= node:
         return np.zeros(3)
     last = max(m for m in range(schedule.nodes) if schedule.subtask_of(m) == subtask)
     way = kf.goal[:2] - kf.object_poses[kf.object][:2]
@@ -164,7 +164,8 @@ def initial_guess(
     homotopy: bool = False,
 ) -> np.ndarray:
     """(width, N): Sec. IV-C.2's subtask-like warm start: each subtask's nodes at its
-    keyframe (robot and objects), at rest, the weight shared by the feet in contact, each
+    keyframe (robot and objects; a keyframe that does not guide: the next that does), at
+    rest, the weight shared by the feet in contact, each
     supported object's load by its support, and a carried object's weight by the hands,
     which squeeze it hard enough for their friction cones (3a) to hold it,
     :data:`SQUEEZE_MARGIN` times over. After a ``push`` keyframe the robot, the pushed object
@@ -176,7 +177,7 @@ def initial_guess(
     X[var["alpha"]] = 1.0 if homotopy else 0.0
     for k in range(n):
         mode = modes[k]
-        kf = inputs.keyframes[schedule.subtask_of(k)]
+        kf = guiding_keyframe(inputs, schedule.subtask_of(k))
         use_kf = cfg.warm_start and k > 0
         shift = push_shift(inputs, schedule, k) if use_kf else np.zeros(3)
         X[var["q"], k] = kf.q35 if use_kf else inputs.q_start

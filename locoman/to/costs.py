@@ -110,14 +110,16 @@ class CostWeights:
         return errors
 
 
-# (14a) averages the stage and collision costs over the nodes; the keyframe costs and the
-# object goal are summed once. The rest of these fields are not weights.
-SUMMED = ("keyframe_base", "keyframe_foot", "object_goal")
+# (14a) averages the stage and collision costs over the nodes, the keyframe foot cost (10)
+# with them (it is part of the stance cost L_st); the keyframe base cost (9) and the object
+# goal are summed once. The rest of these fields are not weights.
+SUMMED = ("keyframe_base", "object_goal")
 NOT_WEIGHTS = ("clearance_m", "base_height_m", "timestep_s", "average_over_nodes")
 
 
 def averaged_over_nodes(weights: CostWeights, nodes: int) -> CostWeights:
-    """The weights of (14a): every stage and collision weight divided by N ``nodes``."""
+    """The weights of (14a): every stage and collision weight, (10)'s included, divided by N
+    ``nodes``."""
     return dataclasses.replace(
         weights,
         **{

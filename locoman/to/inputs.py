@@ -10,6 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from locoman.errors import ConfigError
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.rotations import matrix_to_rpy
@@ -39,6 +40,9 @@ class Keyframe:
         feet_xy: (2, 2) x, y [m] of the left and right foot contacts that (10) aims at, where
             they differ from the keyframe's soles (the naive baseline's feet on an object,
             Sec. V-B); None: the keyframe's soles.
+        guides: Its keyframe guides the TO ((9), (10), the warm start); otherwise it gives
+            only the contact schedule and the yaw reference (paper A's S1 uses three
+            keyframes for its four subtasks).
     """
 
     predicate: str
@@ -50,6 +54,7 @@ class Keyframe:
     support_height: float = 0.0
     step_height: float = 0.0
     feet_xy: np.ndarray | None = None
+    guides: bool = True
 
     def foot_midpoint(self) -> np.ndarray:
         """(2,) x, y [m] of the feet's midpoint that (10) aims at."""
@@ -83,6 +88,33 @@ class TOInputs:
     hand_points: np.ndarray
     hand_frames: np.ndarray
     obstacles: tuple[Obstacle, ...] = ()
+
+
+def guided_by(inputs: TOInputs, subtasks: Sequence[int] | None) -> TOInputs:
+    """``inputs`` with only the keyframes of ``subtasks`` (plan indices; None: all) guiding.
+
+    Raises:
+        ConfigError: An index beyond the plan.
+    """
+    if subtasks is None:
+        return inputs
+    n = len(inputs.keyframes)
+    if max(subtasks) >= n:
+        raise ConfigError(
+            f"solve.keyframes names subtask {max(subtasks)}, but the plan has {n} (0 .. {n - 1})"
+        )
+    keyframes = [
+        dataclasses.replace(kf, guides=i in subtasks) for i, kf in enumerate(inputs.keyframes)
+    ]
+    return dataclasses.replace(inputs, keyframes=keyframes)
+
+
+def guiding_keyframe(inputs: TOInputs, subtask: int) -> Keyframe:
+    """The keyframe a subtask's nodes start at: its own where it guides, else the next one
+    that does (S1's step: the grab on the box), the last one after the last."""
+    keyframes = inputs.keyframes
+    later = [kf for kf in keyframes[subtask:] if kf.guides]
+    return later[0] if later else [kf for kf in keyframes if kf.guides][-1]
 
 
 def base_yaw(q35: np.ndarray) -> float:

@@ -21,8 +21,8 @@ def node_parameters(
     The yaw reference goes linearly, over each subtask's nodes, from the previous keyframe's
     yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes around
     it (after the subtask's last step before it, before its next); ``keyframe_costs`` =
-    (base, foot) switches them. A
-    subtask's goal holds its object at the subtask's last node. The hands' contacts are
+    (base, foot) switches them; a keyframe that does not guide has neither. A subtask's
+    goal holds its object at the subtask's last node. The hands' contacts are
     those on the object they touch, elsewhere on the first object a hand touches.
     """
     layout = NodeLayout.of(len(inputs.objects))
@@ -39,10 +39,10 @@ def node_parameters(
             P[par["yaw_ref"].start, 0] = yaw_before
         yaw_before = base_yaw(kf.q35)
         node = kf_nodes[i]
-        if keyframe_costs[0]:
+        if keyframe_costs[0] and kf.guides:
             P[par["kf_base_on"], node] = 1.0
             P[par["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
-        if keyframe_costs[1]:
+        if keyframe_costs[1] and kf.guides:
             # The stance around the keyframe: after the last step before it, up to the next
             # step (a push walks on after its keyframe).
             swings = [k for k in nodes if not schedule.phase(k).stance]

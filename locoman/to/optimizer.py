@@ -24,7 +24,7 @@ from locoman.to.assembly import (
 )
 from locoman.to.bounds import bounds, initial_guess
 from locoman.to.costs import averaged_over_nodes
-from locoman.to.inputs import TOInputs
+from locoman.to.inputs import TOInputs, guided_by
 from locoman.to.modes import node_modes
 from locoman.to.node_parameters import node_parameters
 from locoman.to.schedule import build_schedule
@@ -103,6 +103,7 @@ class TrajectoryOptimizer:
 
     def __init__(self, inputs: TOInputs, cfg: SolveCfg, cache_dir: Path | None) -> None:
         tic = time.perf_counter()
+        inputs = guided_by(inputs, cfg.keyframes)
         self.inputs, self.cfg = inputs, cfg
         self.schedule = build_schedule(inputs, cfg.schedule)
         self.modes = node_modes(inputs, self.schedule)
