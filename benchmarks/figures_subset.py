@@ -1,7 +1,8 @@
 """Paper A's Fig. 5 and Fig. 6 of one scenario on a subset of its Fig. 6 grid.
 
 Usage: python benchmarks/figures_subset.py <scenario> <out_dir> [--box-mass M ...]
-       [--initial-yaw Y ...] [--figures fig5|fig6|vb|fig6_paper ...]
+       [--initial-yaw Y ...] [--figures fig5|fig6|vb|fig6_paper ...] [--runs NAME ...]
+       [--draw-only]
 
 S1's and S2's full grids (``figures.grids``: 6 and 15 cells, 8 keyframe settings each) take
 hours on 2 cores with the found-pair rounds. This runs the chosen figures (default: every
@@ -10,6 +11,9 @@ scenario's ``scenario.box_mass``, ``initial_yaw``; Fig. 5 is always at those), a
 them with the figures stage's code into ``out_dir`` (``<figure>.png``, summary.csv,
 summary.md, metrics.json, timing.json). The cells are those of the full grid, under
 ``data/<scenario>/grid/``: the full grid reuses them, and this reuses the full grid's.
+``--runs`` keeps only these of each figure's runs (``none all``: Fig. 6's NoKeyframe and
+AllKeyframe, which its claims compare); ``--draw-only`` draws the cells' records as they are
+(run by hand or on a cluster) and solves nothing.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--box-mass", type=float, nargs="+", help="[kg]")
     parser.add_argument("--initial-yaw", type=float, nargs="+", help="[rad]")
     parser.add_argument("--figures", nargs="+", choices=list(REPORTS), help="default: all it can")
+    parser.add_argument("--runs", nargs="+", help="only these runs of each figure")
+    parser.add_argument("--draw-only", action="store_true", help="draw the records, solve nothing")
     args = parser.parse_args(argv)
     cfg = load_params()
     if args.scenario not in cfg.figures.grids:
@@ -54,6 +60,8 @@ def main(argv: list[str]) -> int:
                 args.out_dir,
                 params_file=params,
                 figures=args.figures,
+                runs=args.runs,
+                solve=not args.draw_only,
             )
         except LocomanError as exc:
             print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)

@@ -483,7 +483,9 @@ def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
     monkeypatch.setattr(
         report,
         "launch",
-        lambda scenario, figure, params_file: launched.append((scenario, figure, params_file)),
+        lambda scenario, figure, params_file, runs: launched.append(
+            (scenario, figure, params_file)
+        ),
     )
     subset = tmp_path / "params.yaml"
     with pytest.raises(ArtifactError, match="has no record"):
@@ -498,7 +500,7 @@ def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, mon
 
     launched = []
     monkeypatch.setattr(
-        report, "launch", lambda scenario, figure, params_file: launched.append(figure)
+        report, "launch", lambda scenario, figure, params_file, runs: launched.append(figure)
     )
     records = [
         _record(run.name, "converged" if k else "not_converged", 0.002, yaw=yaw)
@@ -517,6 +519,38 @@ def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, mon
     with pytest.raises(ConfigError, match="unknown figures"):
         report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig7"])
     assert launched == ["fig6"]
+
+
+def test_a_grid_of_chosen_runs_launches_and_draws_only_those(params, tmp_path, monkeypatch):
+    """``figures_subset.py --runs none all``: Fig. 6's two compared settings alone (S2 in
+    paper A's settings is 12 min a solve); ``--draw-only`` launches nothing."""
+    import locoman.grid.report as report
+
+    planned = cells(params, "tiny", "fig6", ["all", "none"])
+    assert [c.run for c in planned] == ["none", "all"] * (len(planned) // 2)
+    assert "cell.run=none,all" in multirun_command(params, "tiny", "fig6", [], ["all", "none"])
+    with pytest.raises(ConfigError, match=r"has no runs \['nokey'\]"):
+        cells(params, "tiny", "fig6", ["nokey"])
+    launched = []
+    monkeypatch.setattr(
+        report, "launch", lambda scenario, figure, params_file, runs: launched.append(runs)
+    )
+    records = [
+        _record(run, "converged", 0.002 * (run == "none"), yaw=yaw)
+        for yaw in (0.0, 0.6)
+        for run in ("none", "all")
+    ]
+    monkeypatch.setattr(report, "collect", lambda *args: records)
+    out = tmp_path / "out"
+    metrics = report.figures_scenario(
+        params, "tiny", out, tmp_path, figures=["fig6"], runs=["none", "all"]
+    )
+    assert launched == [["none", "all"]]
+    assert metrics["fig6"]["cells"] == 2
+    assert set(metrics["fig6"]["converged_rate"]) == {"none", "all"}
+    assert len(fig6(records, 0.075, "Fig. 6").axes[0].patches) == 2  # two bars a panel
+    report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig6"], solve=False)
+    assert launched == [["none", "all"]]
 
 
 @pytest.mark.parametrize(

@@ -17,6 +17,7 @@ import dataclasses
 import os
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -30,14 +31,21 @@ from locoman.grid.runs import FIGURE_RUNS
 from locoman.kernels import pin_kernels
 
 
-def cells(cfg: RootCfg, scenario: str, figure: str) -> list[CellCfg]:
-    """The cells of ``figure`` for ``scenario``, in the figure's order (mass, yaw, run).
+def cells(
+    cfg: RootCfg, scenario: str, figure: str, runs: Sequence[str] | None = None
+) -> list[CellCfg]:
+    """The cells of ``figure`` for ``scenario``, in the figure's order (mass, yaw, run);
+    ``runs``: only these of the figure's runs (None: all).
 
     Raises:
-        ConfigError: An unknown figure, or a scenario without a grid.
+        ConfigError: An unknown figure or run, or a scenario without a grid.
     """
     if figure not in FIGURE_RUNS:
         raise ConfigError(f"unknown figure {figure!r}; known: {sorted(FIGURE_RUNS)}")
+    names = [run.name for run in FIGURE_RUNS[figure]]
+    unknown = sorted(set(runs or ()) - set(names))
+    if unknown:
+        raise ConfigError(f"figure {figure!r} has no runs {unknown}; its runs: {names}")
     if scenario not in cfg.figures.grids:
         raise ConfigError(f"figures.grids has no {scenario!r}; add its grid in conf/figures/")
     if figure == "fig5":
@@ -46,10 +54,11 @@ def cells(cfg: RootCfg, scenario: str, figure: str) -> list[CellCfg]:
         grid = cfg.figures.grids[scenario]
         masses, yaws = grid.box_mass, grid.initial_yaw
     return [
-        CellCfg(scenario, figure, run.name, float(m), float(y))
+        CellCfg(scenario, figure, name, float(m), float(y))
         for m in masses
         for y in yaws
-        for run in FIGURE_RUNS[figure]
+        for name in names
+        if runs is None or name in runs
     ]
 
 
@@ -98,10 +107,16 @@ def check_overrides(scenario: str, figure: str, extra: list[str]) -> None:
                     raise ConfigError(f"grid override {key}={text!r}: {message}")
 
 
-def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str]) -> list[str]:
+def multirun_command(
+    cfg: RootCfg,
+    scenario: str,
+    figure: str,
+    extra: list[str],
+    runs: Sequence[str] | None = None,
+) -> list[str]:
     """The Hydra multirun that runs every cell of :func:`cells`, with ``extra`` overrides
     last (they win)."""
-    swept = cells(cfg, scenario, figure)
+    swept = cells(cfg, scenario, figure, runs)
     launcher = [f"hydra/launcher={cfg.figures.launcher}"]
     if cfg.figures.launcher == "joblib":
         launcher.append(f"hydra.launcher.n_jobs={cfg.figures.n_jobs}")
@@ -123,9 +138,14 @@ def multirun_command(cfg: RootCfg, scenario: str, figure: str, extra: list[str])
 
 
 def launch(
-    scenario: str, figure: str, extra: list[str] = (), params_file: str | Path = "params.yaml"
+    scenario: str,
+    figure: str,
+    extra: list[str] = (),
+    params_file: str | Path = "params.yaml",
+    runs: Sequence[str] | None = None,
 ) -> None:
-    """Run the grid (a subprocess: Hydra owns its process's logging and working state).
+    """Run the grid (a subprocess: Hydra owns its process's logging and working state);
+    ``runs``: only these of the figure's runs.
 
     Raises:
         ConfigError: Bad arguments.
@@ -133,7 +153,7 @@ def launch(
     """
     cfg = load_params(params_file)
     check_overrides(scenario, figure, list(extra))
-    command = multirun_command(cfg, scenario, figure, list(extra))
+    command = multirun_command(cfg, scenario, figure, list(extra), runs)
     if Path(params_file) != Path("params.yaml"):
         command.append(f"params_file={params_file}")
     print("[grid] " + " ".join(command[1:]), flush=True)

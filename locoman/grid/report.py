@@ -48,14 +48,21 @@ from locoman.grid.runs import KEYFRAME_RUNS
 from locoman.sim.penetration import CLASSES
 
 
-def collect(cfg: RootCfg, scenario: str, figure: str, data_dir: Path) -> list[dict[str, Any]]:
-    """The records of every cell of the figure, in its order.
+def collect(
+    cfg: RootCfg,
+    scenario: str,
+    figure: str,
+    data_dir: Path,
+    runs: Sequence[str] | None = None,
+) -> list[dict[str, Any]]:
+    """The records of every cell of the figure (``runs``: of these of its runs), in its
+    order.
 
     Raises:
         ArtifactError: A cell has no record (the grid did not finish it).
     """
     records = []
-    for cell in cells(cfg, scenario, figure):
+    for cell in cells(cfg, scenario, figure, runs):
         record = read_record(cell_dir(data_dir, cell))
         if record is None:
             raise ArtifactError(
@@ -158,10 +165,12 @@ def _keyframe_report(figure: str, name: str, setting: str) -> ReportFunction:
 
 
 def _fig6_report(name: str, figure: str, records: list[dict[str, Any]]) -> FigureReport:
-    n_cells = len(records) // len(KEYFRAME_RUNS)
+    n_cells = len({(r["box_mass"], r["initial_yaw"]) for r in records})
+    ran = {r["run"] for r in records}
     converged = {
         run.name: sum(r["status"] == "converged" for r in records if r["run"] == run.name)
         for run in KEYFRAME_RUNS
+        if run.name in ran
     }
     return FigureReport(
         name=name,
@@ -217,10 +226,14 @@ def figures_scenario(
     data_dir: Path = Path("data"),
     params_file: Path = Path("params.yaml"),
     figures: Sequence[str] | None = None,
+    runs: Sequence[str] | None = None,
+    solve: bool = True,
 ) -> dict[str, Any]:
     """Run the grids of ``figures`` (None: :func:`default_figures`) for ``scenario`` (cells
     up to date are skipped), draw, summarise; return the metrics. ``cfg`` is
-    ``params_file``'s, which the cells read.
+    ``params_file``'s, which the cells read. ``runs``: only these of each figure's runs
+    (Fig. 6's NoKeyframe and AllKeyframe, say, where a grid of every setting costs hours);
+    ``solve`` False draws the cells' records as they are.
 
     Raises:
         ConfigError: An unknown figure.
@@ -231,12 +244,14 @@ def figures_scenario(
     if unknown:
         raise ConfigError(f"unknown figures {sorted(unknown)}; known: {list(REPORTS)}")
     figures = [f for f in REPORTS if f in figures]
+    if not solve:
+        return draw(cfg, scenario, figures, out_dir, data_dir, runs=runs)
     seconds = {}
     for figure in figures:
         tic = time.perf_counter()
-        launch(scenario, figure, params_file=params_file)
+        launch(scenario, figure, params_file=params_file, runs=runs)
         seconds[figure] = time.perf_counter() - tic
-    return draw(cfg, scenario, figures, out_dir, data_dir, seconds)
+    return draw(cfg, scenario, figures, out_dir, data_dir, seconds, runs)
 
 
 def draw(
@@ -246,15 +261,16 @@ def draw(
     out_dir: Path,
     data_dir: Path = Path("data"),
     seconds: dict[str, float] | None = None,
+    runs: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Draw and summarise ``figures`` from their cells' records into ``out_dir``; return the
     metrics. ``seconds``: each grid's wall time [s], for ``timing.json`` (None: the one there
-    is kept).
+    is kept); ``runs``: only these of each figure's runs.
 
     Raises:
         ArtifactError: A cell has no record.
     """
-    records = {f: collect(cfg, scenario, f, data_dir) for f in figures}
+    records = {f: collect(cfg, scenario, f, data_dir, runs) for f in figures}
     reports = {f: REPORTS[f](cfg, scenario, records[f], out_dir, data_dir) for f in figures}
 
     claims = [c for report in reports.values() for c in report.claims]
