@@ -428,6 +428,10 @@ def test_fig6_claims_compare_all_against_none_cell_by_cell():
     assert convergence.holds and "AllKeyframe 2/2, NoKeyframe 1/2" in convergence.evidence
     assert penetration.holds is None  # one pair (yaw 0.6): too few to decide
     assert fig6_claims([])[0].holds is None
+    # Neither converging anywhere (S2 in paper A's settings) is no evidence either way.
+    stuck = [{**r, "status": "not_converged"} for r in records]
+    assert fig6_claims(stuck, "fig6_paper")[0].holds is None
+    assert fig6_claims(stuck, "fig6_paper")[0].key == "fig6_paper_convergence"
     lower = [
         _record(run, "converged", pen, yaw=0.2 * k)
         for k in range(6)

@@ -220,7 +220,16 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
             ax.bar(k, min(value, bound_mm), color=colour, hatch=hatch, edgecolor="black", lw=0.5)
             if hatch is not None:
                 why = short_reason(str(record.get("reason") or record["status"]))
-                ax.text(k, bound_mm * 0.02, why, rotation=90, ha="center", va="bottom", fontsize=7)
+                ax.text(
+                    k,
+                    bound_mm * 0.02,
+                    why,
+                    rotation=90,
+                    ha="center",
+                    va="bottom",
+                    fontsize=8,
+                    bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.0},
+                )
             if value > bound_mm:
                 ax.plot(k, bound_mm, "^", color="black", ms=8)
         ax.set_title(f"({mass:g} kg, {yaw:g} rad)")
