@@ -27,5 +27,9 @@ class DemoError(LocomanError):
     """A demonstration file is malformed (bad header, a missing or non-numeric value, ...)."""
 
 
+class InputError(LocomanError):
+    """A user's input file (an image, its annotations, its depth) is missing or malformed."""
+
+
 class SolverError(LocomanError):
     """A numerical solve failed (a QP reported infeasibility, a factorisation broke down)."""

@@ -10,10 +10,11 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-GENERATE_BACKENDS = ("render", "flux")
+GENERATE_BACKENDS = ("render", "flux", "folder")
 MASK_BACKENDS = ("render", "grabcut", "sam")
-KEYPOINT_BACKENDS = ("render", "mediapipe")
-DEPTH_BACKENDS = ("error_model", "depth_anything")
+KEYPOINT_BACKENDS = ("render", "mediapipe", "annotated")
+POSE_BACKENDS = ("truth_noise", "fit")
+DEPTH_BACKENDS = ("error_model", "depth_anything", "provided")
 INTRINSICS = ("heuristic", "true")
 TORCH_DTYPES = ("float32", "bfloat16", "float16")
 
@@ -175,12 +176,28 @@ class FluxCfg:
 
 
 @dataclass
+class FolderCfg:
+    """The ``folder`` image backend: R_g from a folder of the user's images.
+
+    Attributes:
+        images_dir: Folder holding ``subtask_<i>.png`` (or ``.jpg``) per subtask of the plan,
+            optionally ``subtask_<i>.json`` (the object's box, 2D keypoints) and
+            ``subtask_<i>_depth.png`` (16-bit depth [mm]); see
+            :mod:`locoman.perception.user_images`. A relative path is taken from the
+            repository root. Nothing about the folder's location enters the artifacts.
+    """
+
+    images_dir: str | None = None
+
+
+@dataclass
 class GenerateCfg:
     """Stage ``generate``: an image R_g per subtask and the sim views R_s, D_s.
 
     Attributes:
-        backend: ``render`` (posed demonstrator rendered in MuJoCo, the CPU default) or
-            ``flux`` (a diffusion model from ``flux.weights_dir``).
+        backend: ``render`` (posed demonstrator rendered in MuJoCo, the CPU default),
+            ``flux`` (a diffusion model from ``flux.weights_dir``) or ``folder`` (the user's
+            images from ``folder.images_dir``).
         width: Image width [px].
         height: Image height [px].
         step_height_max_m: Feet stand on the object's top when it is at most this high [m];
@@ -195,9 +212,12 @@ class GenerateCfg:
     view: ViewCfg = field(default_factory=ViewCfg)
     sim_view: SimViewCfg = field(default_factory=SimViewCfg)
     flux: FluxCfg = field(default_factory=FluxCfg)
+    folder: FolderCfg = field(default_factory=FolderCfg)
 
     def check(self) -> list[tuple[str, str]]:
         errors = _choice("backend", self.backend, GENERATE_BACKENDS)
+        if self.backend == "folder" and not self.folder.images_dir:
+            errors.append(("folder.images_dir", "the folder backend needs the images' folder"))
         if not (64 <= self.width <= 4096 and 64 <= self.height <= 4096):
             errors.append(("width", "image size must be within [64, 4096] px"))
         return errors
@@ -215,8 +235,13 @@ class MasksCfg:
         grabcut_iterations: GrabCut iterations.
         sam_weights_dir: Folder of a transformers SAM checkpoint (``config.json`` and weights).
         sam_runtime: Device and precision of SAM.
-        keypoints: ``render`` (true keypoints plus ``keypoint_jitter_px``) or ``mediapipe``
-            (BlazePose, needs the optional ``mediapipe`` package).
+        keypoints: ``render`` (true keypoints plus ``keypoint_jitter_px``), ``mediapipe``
+            (BlazePose, needs the optional ``mediapipe`` package) or ``annotated`` (the
+            ``keypoints_px`` of the ``folder`` backend's annotations).
+        pose: The 3D human pose: ``truth_noise`` (the true pose plus ``pose_noise_*``,
+            render images only) or ``fit`` (the human model fitted to the 2D keypoints through
+            paper A's heuristic intrinsics, :mod:`locoman.perception.pose_fit`). Both are
+            scored against the truth where there is one.
         keypoint_jitter_px: Std of the Gaussian pixel noise on each keypoint [px].
         pose_noise_m: Std of the noise on the 3D keypoints of the pose artifact [m],
             standing in for a 3D human pose estimator.
@@ -229,6 +254,7 @@ class MasksCfg:
     sam_weights_dir: str | None = None
     sam_runtime: TorchCfg = field(default_factory=TorchCfg)
     keypoints: str = "render"
+    pose: str = "truth_noise"
     keypoint_jitter_px: float = 3.0
     pose_noise_m: float = 0.01
     pose_noise_rad: float = 0.05
@@ -236,6 +262,7 @@ class MasksCfg:
     def check(self) -> list[tuple[str, str]]:
         errors = _choice("backend", self.backend, MASK_BACKENDS)
         errors += _choice("keypoints", self.keypoints, KEYPOINT_BACKENDS)
+        errors += _choice("pose", self.pose, POSE_BACKENDS)
         if self.keypoint_jitter_px < 0 or self.pose_noise_m < 0 or self.pose_noise_rad < 0:
             errors.append(("keypoint_jitter_px", "noise levels must be >= 0"))
         if self.box_margin_px < 0 or self.grabcut_iterations < 1:
@@ -274,8 +301,9 @@ class CloudsCfg:
     """Stage ``clouds``: depth and intrinsics of R_g, object clouds, lifted keypoints.
 
     Attributes:
-        depth: ``error_model`` (true depth through ``perception.depth_error``) or
-            ``depth_anything`` (a transformers depth-estimation checkpoint).
+        depth: ``error_model`` (true depth through ``perception.depth_error``),
+            ``depth_anything`` (a transformers depth-estimation checkpoint) or ``provided``
+            (the depth maps of the ``folder`` backend's images).
         depth_weights_dir: Folder of the depth checkpoint for ``depth_anything``.
         depth_runtime: Device and precision of the depth model.
         intrinsics: ``heuristic`` (the paper: focal lengths = image resolution, principal

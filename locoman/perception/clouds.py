@@ -22,7 +22,7 @@ from locoman.artifacts import (
     write_png,
 )
 from locoman.config.perception import CloudsCfg, DepthErrorCfg
-from locoman.errors import SceneError
+from locoman.errors import InputError, SceneError
 from locoman.perception import camera
 from locoman.perception.contact_sheet import contact_sheet
 from locoman.perception.depth import DepthAnythingEstimator, depth_error_model
@@ -38,6 +38,7 @@ from locoman.perception.io import (
     read_png,
 )
 from locoman.perception.masks import load_truth, median_or_none
+from locoman.perception.user_images import load_user_input
 from locoman.progress import progress
 
 CLOUD_SEED_OFFSET = 2  # the clouds stage draws from its own stream
@@ -133,6 +134,7 @@ def chamfer(a: np.ndarray, b: np.ndarray) -> float:
 def estimate_depth(
     rgb: np.ndarray,
     truth: dict[str, np.ndarray] | None,
+    user: dict[str, np.ndarray] | None,
     cfg: CloudsCfg,
     error: DepthErrorCfg,
     rng: np.random.Generator,
@@ -141,10 +143,18 @@ def estimate_depth(
     """Depth D_g of a generated image [m] from the configured backend."""
     if estimator is not None:
         return estimator(rgb)
+    if cfg.depth == "provided":
+        if user is None or not bool(user["depth_given"]):
+            raise InputError(
+                "perception.clouds.depth = provided reads the depth map that came with a "
+                "folder backend image (subtask_<i>_depth.png), and this image has none; use "
+                "depth = depth_anything"
+            )
+        return user["depth_m"]
     if truth is None:
         raise SceneError(
             "perception.clouds.depth = error_model needs the render backend's true depth; "
-            "with flux images use depth = depth_anything"
+            "with flux or folder images use depth = depth_anything (or provided)"
         )
     return depth_error_model(truth["depth_m"], error, rng)
 
@@ -176,7 +186,8 @@ def clouds_scenario(
         masks = read_npz(masks_dir / SUBTASKS_DIR / f"subtask_{i}.npz", MASKS)
         truth = load_truth(generate_dir, i)
         rng = subtask_rng(seed + CLOUD_SEED_OFFSET, scenario, i)
-        depth = estimate_depth(rgb, truth, cfg, error, rng, estimator)
+        user = load_user_input(generate_dir, i)
+        depth = estimate_depth(rgb, truth, user, cfg, error, rng, estimator)
         h, w = depth.shape
         if cfg.intrinsics == "heuristic":
             K = camera.heuristic_intrinsics(w, h)

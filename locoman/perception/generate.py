@@ -11,7 +11,7 @@ import numpy as np
 
 from locoman.artifacts import write_json, write_metrics, write_npz, write_png
 from locoman.config.perception import GenerateCfg
-from locoman.perception import flux
+from locoman.perception import flux, user_images
 from locoman.perception.demonstrator import ContactTarget, map_to_object
 from locoman.perception.io import (
     GROUND_TRUTH,
@@ -48,11 +48,19 @@ def generate_scenario(
 ) -> dict[str, Any]:
     """Write every subtask's images, sim view and (``render`` backend) ground truth.
 
+    Backends: ``render`` (with ground truth), ``flux`` (a diffusion model) and ``folder``
+    (the user's images, with what came with them in ``user_input.npz``).
+
     Returns:
         The stage's metrics: per-subtask seconds and the demonstrator's contact miss.
     """
     objects, plan = load_objects(scene_dir), load_plan(scene_dir)
     generator = flux.load_flux_pipeline(cfg.flux) if cfg.backend == "flux" else None
+    user_folder = None
+    if cfg.backend == "folder":
+        assert cfg.folder.images_dir is not None  # GenerateCfg.check
+        user_folder = user_images.resolve_images_dir(cfg.folder.images_dir)
+        user_images.check_folder(user_folder, [s["index"] for s in plan["subtasks"]])
     entries, per_subtask = [], []
     states = plan_states(objects, plan["subtasks"])
     ordered = sorted(plan["subtasks"], key=lambda s: s["index"])
@@ -71,6 +79,7 @@ def generate_scenario(
             SIM_VIEW,
             {
                 "depth_m": sim.depth_m,
+                "object_mask": sim.object_mask,
                 "K": sim.K,
                 "T_world_cam": sim.T_world_cam,
                 "T_world_object": sim.T_world_object,
@@ -79,6 +88,10 @@ def generate_scenario(
         record: dict[str, Any] = {"index": i}
         if generator is not None:
             write_png(folder / "image.png", flux.generate_image(generator, prompt, cfg, seed + i))
+        elif user_folder is not None:
+            rgb, user_input, record["source_sha256"] = user_images.read_user_image(user_folder, i)
+            write_png(folder / "image.png", rgb)
+            write_npz(folder / user_images.USER_INPUT_FILE, user_images.USER_INPUT, user_input)
         else:
             stand_on = None
             if state.stands_on is not None and state.stands_on != name:
@@ -121,10 +134,11 @@ def generate_scenario(
         "seconds_per_subtask": float(np.median([r["seconds"] for r in per_subtask])),
         "per_subtask": per_subtask,
     }
-    if generator is None:
+    truth = cfg.backend == "render"
+    if truth:
         metrics["ik_residual_max_m"] = max(r["ik_residual_m"] for r in per_subtask)
-    metrics["ground_truth"] = generator is None
-    if generator is not None:
+    metrics["ground_truth"] = truth
+    if not truth:
         metrics["not_scored"] = NO_TRUTH
     write_metrics(out_dir, metrics)
     return metrics

@@ -5,7 +5,10 @@ Layout under ``data/<scenario>/``::
     generate/prompts.json                         augmented prompts, one entry per subtask
     generate/images/subtask_<i>/image.png         R_g
     generate/images/subtask_<i>/sim_rgb.png       R_s
-    generate/images/subtask_<i>/sim_view.npz      D_s, true intrinsics, camera and object poses
+    generate/images/subtask_<i>/sim_view.npz      D_s, true intrinsics, camera and object poses,
+                                                  the object's mask in R_s
+    generate/images/subtask_<i>/user_input.npz    ``folder`` backend: the user's box, keypoints,
+                                                  depth (locoman.perception.user_images)
     generate/ground_truth/subtask_<i>.npz         scoring only (see below)
     masks/subtasks/subtask_<i>.npz                object masks in R_g and R_s, 2D keypoints
     masks/subtasks/pose_<i>.npz                   3D human pose estimate in R_g's camera frame
@@ -49,10 +52,11 @@ PROMPTS = ArtifactSchema(
 )
 SIM_VIEW = ArtifactSchema(
     "perception.sim_view",
-    1,
+    2,
     "generate",
     (
         Field("depth_m", "float32", ("H", "W"), "m", "D_s: depth along the optical axis, 0 = none"),
+        Field("object_mask", "bool", ("H", "W"), "-", "the object's pixels: the simulator's"),
         Field("K", "float64", (3, 3), "px", "true intrinsics of R_s"),
         Field("T_world_cam", "float64", (4, 4), "m", "camera pose in the scene (OpenCV axes)"),
         Field("T_world_object", "float64", (4, 4), "m", "the object's pose in the scene"),

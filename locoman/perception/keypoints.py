@@ -1,8 +1,9 @@
 """2D human keypoints in R_g and the 3D pose estimate (paper A: a human pose estimator [25]).
 
 Backends: ``render`` (the true keypoints plus Gaussian pixel jitter) and ``mediapipe``
-(BlazePose, optional package). The 3D pose artifact is the true pose plus noise, standing in
-for a 3D human pose estimator.
+(BlazePose, optional package). The 3D pose artifact is the true pose plus noise
+(``truth_noise``, standing in for a 3D human pose estimator) or the human model fitted to the
+2D keypoints (``fit``, :mod:`locoman.perception.pose_fit`); both are scored here.
 """
 
 from __future__ import annotations
@@ -92,6 +93,29 @@ def keypoint_errors(estimate: np.ndarray, truth: dict[str, np.ndarray]) -> dict[
         "median_px": float(np.median(err[found])),
         "max_px": float(err[found].max()),
         "detected_fraction": float(found.mean()),
+    }
+
+
+def pose_errors(pose: dict[str, np.ndarray], truth: dict[str, np.ndarray]) -> dict[str, float]:
+    """A 3D pose estimate against the truth, in R_g's camera frame.
+
+    Returns:
+        ``mpjpe_m``: mean keypoint distance [m] (the absolute placement, depth included);
+        ``mpjpe_pelvis_aligned_m``: the same after moving both pelvises to the origin [m]
+        (the posture); ``pelvis_rotation_error_deg``: angle between the pelvis frames [deg].
+    """
+    true_kp = to_camera(truth["keypoints_world_m"], truth["T_world_cam"])
+    est = pose["keypoints_cam_m"]
+    pelvis = list(KEYPOINTS).index("pelvis")
+    aligned = (est - est[pelvis]) - (true_kp - true_kp[pelvis])
+    q = truth["human_qpos"]
+    R_true = np.linalg.inv(truth["T_world_cam"])[:3, :3] @ quat_wxyz_to_matrix(q[3:7])
+    R_rel = R_true.T @ pose["T_cam_pelvis"][:3, :3]
+    cos = np.clip(0.5 * (np.trace(R_rel) - 1.0), -1.0, 1.0)
+    return {
+        "mpjpe_m": float(np.linalg.norm(est - true_kp, axis=1).mean()),
+        "mpjpe_pelvis_aligned_m": float(np.linalg.norm(aligned, axis=1).mean()),
+        "pelvis_rotation_error_deg": float(np.degrees(np.arccos(cos))),
     }
 
 
