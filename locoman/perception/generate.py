@@ -127,6 +127,8 @@ def generate_scenario(
                 "sim_view": str((folder / "sim_view.npz").relative_to(out_dir)),
             }
         )
+    # Empty without truth: DVC's output stays declared whichever backend ran.
+    (out_dir / GROUND_TRUTH_DIR).mkdir(parents=True, exist_ok=True)
     write_json(out_dir / PROMPTS_FILE, PROMPTS, {"backend": cfg.backend, "subtasks": entries})
     metrics: dict[str, Any] = {
         "backend": cfg.backend,
