@@ -115,7 +115,12 @@ def contact_plot(
     cv2.putText(banner, title[:90], (6, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1)
     legend = np.full((48, 2 * TILE, 3), 255, np.uint8)
     x = 6
-    for text, colour in (("true", TRUE_RGB), ("registration", OURS_RGB), ("naive", NAIVE_RGB)):
+    keys = [("registration", OURS_RGB), ("naive", NAIVE_RGB)]
+    # Images without ground truth (flux, folder) have nothing to draw in green: say so.
+    keys = (
+        [("true", TRUE_RGB), *keys] if truth_world is not None else [*keys, ("no truth", (0, 0, 0))]
+    )
+    for text, colour in keys:
         cv2.putText(legend, text, (x, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, colour, 2)
         x += 14 * len(text) + 20
     if footer:
