@@ -218,6 +218,15 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
             value = record["avg_penetration_m"] * 1000
             hatch = None if record["status"] == "converged" else "//"
             ax.bar(k, min(value, bound_mm), color=colour, hatch=hatch, edgecolor="black", lw=0.5)
+            # The value on top: a 0 mm bar is otherwise indistinguishable from no bar.
+            ax.text(
+                k,
+                min(value, bound_mm) + bound_mm * 0.01,
+                f"{value:.1f}",
+                ha="center",
+                va="bottom",
+                fontsize=7,
+            )
             if hatch is not None:
                 why = short_reason(str(record.get("reason") or record["status"]))
                 ax.text(
