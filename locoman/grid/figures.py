@@ -260,7 +260,8 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
         Line2D([], [], ls="", marker="^", color="black", label="beyond the axis bound"),
         Line2D([], [], ls="", marker="x", color="black", label="could not run"),
     ]
-    fig.legend(handles=handles, loc="outside lower center", ncols=6, fontsize=8)
+    # Six columns fit three panels' width; two panels take four (the legend was clipped).
+    fig.legend(handles=handles, loc="outside lower center", ncols=6 if cols >= 3 else 4, fontsize=8)
     return fig
 
 
