@@ -37,6 +37,10 @@ GROUND_TRUTH_DIR = "ground_truth"
 SUBTASKS_DIR = "subtasks"
 CONTACT_SHEETS_DIR = "contact_sheets"
 
+# 2D keypoints of R_g, found (masks) or given (a user's annotations).
+KEYPOINTS_PX = Field(
+    "keypoints_px", "float64", ("K", 2), "px", "(u, v) in R_g; NaN where none", nan_allowed=True
+)
 PROMPTS = ArtifactSchema(
     "perception.prompts",
     1,
@@ -98,14 +102,7 @@ MASKS = ArtifactSchema(
         Field("object_mask", "bool", ("H", "W"), "-", "object pixels in R_g"),
         Field("sim_object_mask", "bool", ("Hs", "Ws"), "-", "object pixels in R_s"),
         Field("keypoint_names", "str", ("K",)),
-        Field(
-            "keypoints_px",
-            "float64",
-            ("K", 2),
-            "px",
-            "(u, v) in R_g; NaN when not found",
-            nan_allowed=True,
-        ),
+        KEYPOINTS_PX,
         Field("keypoint_confidence", "float64", ("K",), "-", "in [0, 1]"),
     ),
 )

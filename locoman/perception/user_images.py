@@ -38,7 +38,7 @@ from locoman.artifacts import ArtifactSchema, Field, read_npz, write_png
 from locoman.artifacts.io import write_bytes_atomic
 from locoman.errors import InputError
 from locoman.perception.demonstrator import KEYPOINTS
-from locoman.perception.io import GROUND_TRUTH, GROUND_TRUTH_DIR, subtask_dir
+from locoman.perception.io import GROUND_TRUTH, GROUND_TRUTH_DIR, KEYPOINTS_PX, subtask_dir
 from locoman.perception.segment import box_around
 
 USER_INPUT_FILE = "user_input.npz"
@@ -56,14 +56,7 @@ USER_INPUT = ArtifactSchema(
             nan_allowed=True,
         ),
         Field("keypoint_names", "str", ("K",)),
-        Field(
-            "keypoints_px",
-            "float64",
-            ("K", 2),
-            "px",
-            "(u, v) in R_g; NaN when not given",
-            nan_allowed=True,
-        ),
+        KEYPOINTS_PX,
         Field("depth_m", "float32", ("H", "W"), "m", "depth of R_g, 0 = unknown or not given"),
         Field("depth_given", "bool", (), "-", "a depth map came with the image"),
     ),
