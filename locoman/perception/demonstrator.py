@@ -247,7 +247,10 @@ def _body_axis_jac(
     return a, -skew @ jacr
 
 
-def _point(model, data, body: int, offset: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def point_jacobian(
+    model: mujoco.MjModel, data: mujoco.MjData, body: int, offset: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """World position p [m] of ``offset`` [m] in ``body``'s frame and d p / d v (3, nv)."""
     rot = data.xmat[body].reshape(3, 3)
     p = data.xpos[body] + rot @ offset
     jacp = np.zeros((3, model.nv))
@@ -369,7 +372,7 @@ def _solve_ik(
         for name, (target, normal) in targets_world.items():
             body_name, offset = KEYPOINTS[name]
             body = model.body(body_name).id
-            p, jac = _point(model, data, body, offset)
+            p, jac = point_jacobian(model, data, body, offset)
             rows.append(jac)
             errs.append(target - p)
             weights.append(1.0)
@@ -389,7 +392,7 @@ def _solve_ik(
                 rows.append(jac_a)
                 errs.append(world - a)
                 weights.append(w)
-        p, jac = _point(model, data, pelvis, ORIGIN)
+        p, jac = point_jacobian(model, data, pelvis, ORIGIN)
         rows.append(jac[:2])
         errs.append(stance_xy - p[:2])
         weights.append(0.2)

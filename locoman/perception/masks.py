@@ -20,6 +20,7 @@ from locoman.config.perception import MasksCfg
 from locoman.errors import ConfigError, InputError, ModelError
 from locoman.perception import camera, pose_fit
 from locoman.perception import keypoints as kp
+from locoman.perception.demonstrator import keypoints_world
 from locoman.perception.generate import subtask_rng
 from locoman.perception.io import (
     GROUND_TRUTH,
@@ -215,7 +216,7 @@ def _fitted_pose(
     T_cam_pelvis[:3, 3] = fit.qpos[:3]
     return {
         "keypoint_names": np.array(list(kp.KEYPOINTS)),
-        "keypoints_cam_m": pose_fit.keypoints_world(model, fit.qpos),
+        "keypoints_cam_m": keypoints_world(model, fit.qpos),
         "joint_names": np.array(joint_names),
         "joint_angles_rad": fit.qpos[7:].copy(),
         "T_cam_pelvis": T_cam_pelvis,

@@ -29,8 +29,8 @@ from locoman.perception.demonstrator import (
     LOCAL_UP,
     REACH,
     keypoints_world,
+    point_jacobian,
 )
-from locoman.perception.demonstrator import _point as point_jacobian
 from locoman.scene import human
 
 SEED_ELEVATION_RAD = np.deg2rad(15.0)  # the camera looks down at the person by about this
@@ -63,13 +63,11 @@ class PoseFit:
     Attributes:
         qpos: MuJoCo qpos (43,) of the human model in R_g's camera frame: pelvis position
             [m], quaternion (w, x, y, z), 36 joint angles [rad].
-        rms_px: Weighted RMS reprojection error of the used keypoints [px].
-        used: Keypoints that entered the fit [-].
+        rms_px: Weighted RMS reprojection error of the keypoints found [px].
     """
 
     qpos: np.ndarray
     rms_px: float
-    used: int
 
 
 def _seed_rotation(facing_angle: float) -> np.ndarray:
@@ -251,7 +249,7 @@ def fit_pose(
             if best is None or rms < best[1]:
                 best = (q, rms)
     assert best is not None
-    return PoseFit(qpos=best[0], rms_px=best[1], used=int(ok.sum()))
+    return PoseFit(qpos=best[0], rms_px=best[1])
 
 
 def human_model() -> mujoco.MjModel:
