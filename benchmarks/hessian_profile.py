@@ -60,22 +60,6 @@ def own_time(outputs: list[ca.MX], inputs: list[ca.MX], args: tuple, repeats: in
     return max(run - base, 0.0)
 
 
-def virtual_values(tr, derivatives, p: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """z = (x, y): the virtual variables y at ``x``, from the blocks that define them."""
-    z = np.concatenate([x, np.zeros(tr.n_y)])
-    offsets = np.cumsum([0] + [b.p.size for b in tr.blocks])
-    for block, start in zip(tr.blocks, offsets, strict=False):
-        if not (block.defines and block.calls):
-            continue
-        term, n = block.term, block.calls
-        n_in = term.nx - term.ng
-        xb = np.vstack([z[block.x[:, :n_in]].T, np.zeros((term.ng, n))])
-        pb = p[start : start + block.p.size].reshape(n, term.np).T
-        g, _ = derivatives[term.name].val.map(n)(xb, pb)
-        z[block.x[:, n_in:]] = -np.asarray(g).T  # its rows are y - F(x)
-    return z
-
-
 def profile(scenario: str, repeats: int) -> dict:
     cfg = load_params().solve
     root = Path("data") / scenario
@@ -103,7 +87,7 @@ def profile(scenario: str, repeats: int) -> dict:
     )
     x = np.clip(guess, lo, hi).ravel(order="F")
     lam_g = np.random.default_rng(0).normal(size=tr.rows.size)
-    z = virtual_values(tr, optimizer.derivatives, p, x)
+    z = tr.extended(x)
     # Every call of a kind, its blocks' calls side by side, as the assembly maps them.
     calls: dict[str, list] = defaultdict(list)
     defining: dict[str, list] = defaultdict(list)
