@@ -151,6 +151,20 @@ def test_the_headline_sums_the_robots_classes_per_node():
     assert found.deepest(HEADLINE, node=0).geoms == ("a", "box/body")
 
 
+def test_a_scheduled_contact_is_bounded_on_its_own_not_summed_over_the_node():
+    """Two soles 3 mm into the floor at one node: the node's class sum is 6 mm, the
+    deepest contact 3 mm, which is what the scheduled-contact check bounds."""
+    pairs = (
+        PairDepth(1, "scheduled_contact", ("floor", "left_foot"), 0.003),
+        PairDepth(1, "scheduled_contact", ("floor", "right_foot"), 0.003),
+        PairDepth(2, "self", ("a", "b"), 0.009),
+    )
+    found = Penetrations(pairs, np.zeros(3))
+    assert found.by_class()["scheduled_contact"]["max_m"] == pytest.approx(0.006)
+    assert found.deepest_depth(("scheduled_contact",)) == pytest.approx(0.003)
+    assert found.deepest_depth(("robot_object",)) == 0.0
+
+
 def test_tiny_a_box_sunk_in_the_table_beside_a_standing_g1_is_not_the_headline(tiny_scene):
     """The G1's own scene: the box 100 mm into the table at node 1 is four MuJoCo contacts
     (the per-contact sum 0.4 m) and one pair, of the object's class."""

@@ -124,6 +124,12 @@ class Penetrations:
         found = [p for p in self.pairs if p.kind in kinds and node in (None, p.node)]
         return max(found, key=lambda p: p.depth_m, default=None)
 
+    def deepest_depth(self, kinds: tuple[str, ...]) -> float:
+        """The depth of the deepest pair of ``kinds`` anywhere, 0 if none [m]: each contact
+        on its own, where :meth:`per_node` sums the pairs of a node."""
+        pair = self.deepest(kinds)
+        return 0.0 if pair is None else pair.depth_m
+
     def by_class(self) -> dict[str, dict]:
         """Per class: ``max_m`` and ``avg_m`` over the nodes of its per-node sum [m], its
         ``deepest_pair`` (geoms, node, depth) and ``nodes_penetrating``."""
