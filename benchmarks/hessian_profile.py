@@ -10,9 +10,9 @@ the compiled terms' Hessians alone, grouped by term kind, called over the same c
 assembly makes them. The difference is the assembly's: gathering the terms' inputs,
 scattering their nonzeros, and the chain rule through the virtual variables (sphere centres,
 kinematics; :class:`locoman.to.assembly.BlockNLP`). Also the sizes that drive it: the terms'
-Hessian nonzeros, the collision-pair calls, and the Hessian's nonzeros over z = (x, y) and
-over x. Each time is the minimum of ``--repeats`` calls less the same minimum for a function
-that only takes the inputs (Python's conversion of them), so it holds on a busy machine.
+Hessian nonzeros, the collision-pair calls, and the Hessian's nonzeros over x. Each time is
+the minimum of ``--repeats`` calls less the same minimum for a function that only takes the
+inputs (Python's conversion of them), so it holds on a busy machine.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 
 from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
-from locoman.to.assembly import HESSIANS, BlockNLP, parameter_vector
+from locoman.to.assembly import HESSIANS, Block, BlockNLP, parameter_vector
 from locoman.to.bounds import bounds, initial_guess
 from locoman.to.pipeline import build_optimizer, load_inputs
 
@@ -89,13 +89,11 @@ def profile(scenario: str, repeats: int) -> dict:
     lam_g = np.random.default_rng(0).normal(size=tr.rows.size)
     z = tr.extended(x)
     # Every call of a kind, its blocks' calls side by side, as the assembly maps them.
-    calls: dict[str, list] = defaultdict(list)
-    defining: dict[str, list] = defaultdict(list)
-    offsets = np.cumsum([0] + [b.p.size for b in tr.blocks])
-    for block, start in zip(tr.blocks, offsets, strict=False):
+    calls: dict[str, list[Block]] = defaultdict(list)
+    defining: dict[str, list[Block]] = defaultdict(list)
+    for block in tr.blocks:
         if block.calls:
-            pb = p[start : start + block.p.size].reshape(block.calls, block.term.np)
-            (defining if block.defines else calls)[block.term.name].append((block, pb))
+            (defining if block.defines else calls)[block.term.name].append(block)
     out = {
         "scenario": scenario,
         "nodes": optimizer.schedule.nodes,
@@ -125,10 +123,10 @@ def profile(scenario: str, repeats: int) -> dict:
             hr, _ = d.hess_pattern[hessian]
             if not len(hr):
                 continue
-            term = parts[0][0].term
-            xb = np.vstack([z[b.x] for b, _ in parts]).T
-            pb = np.vstack([pb for _, pb in parts]).T
-            lb = np.vstack([lam_g[b.rows] for b, _ in parts]).T
+            term = parts[0].term
+            xb = np.vstack([z[b.x] for b in parts]).T
+            pb = np.vstack([b.p for b in parts]).T
+            lb = np.vstack([lam_g[b.rows] for b in parts]).T
             n = xb.shape[1]
             xs, ps = ca.MX.sym("x", term.nx, n), ca.MX.sym("p", term.np, n)
             ls = ca.MX.sym("l", term.ng, n)
@@ -139,12 +137,10 @@ def profile(scenario: str, repeats: int) -> dict:
         # flavour their Hessians (the curvature sum mu nabla^2 F).
         virtual = 0.0
         for name, parts in defining.items():
-            d, term = optimizer.derivatives[name], parts[0][0].term
+            d, term = optimizer.derivatives[name], parts[0].term
             n_in = term.nx - term.ng
-            xb = np.vstack(
-                [np.c_[z[b.x[:, :n_in]], np.zeros((b.calls, term.ng))] for b, _ in parts]
-            ).T
-            pb = np.vstack([pb for _, pb in parts]).T
+            xb = np.vstack([np.c_[z[b.x[:, :n_in]], np.zeros((b.calls, term.ng))] for b in parts]).T
+            pb = np.vstack([b.p for b in parts]).T
             n = xb.shape[1]
             xs, ps = ca.MX.sym("x", term.nx, n), ca.MX.sym("p", term.np, n)
             ls = ca.MX.sym("l", term.ng, n)
