@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -9,9 +11,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from locoman.artifacts import read_npz
 from locoman.artifacts.mcap_io import read_json_messages
-from locoman.scene.io import load_scene_model
+from locoman.config import load_params
+from locoman.config.schema import ObjectCfg
+from locoman.config.to import scenario_solve
+from locoman.scene.builder import build_scene
+from locoman.scene.io import load_scene_model, write_scene
+from locoman.sim.audit import unscheduled_penetrations
 from locoman.sim.view import trajectory_qpos
+from locoman.to.compile import CACHE_ENV
+from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
+from locoman.to.pipeline import solve_scenario
 
 pytestmark = pytest.mark.slow
 
@@ -133,3 +144,57 @@ def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(wor
     record = json.loads((grid / "all_m5_yaw+0" / "cell.json").read_text())
     assert record["status"] == "converged" and record["success"], record
     assert "converged" in third.stdout
+
+
+def _pole_in_tiny(workdir: Path, out: Path, x: float, y: float, height: float) -> Path:
+    """tiny's scene with a fixed pole (a 4 cm square box) standing at (x, y) [m]."""
+    scenario = copy.deepcopy(load_params(workdir / "params.yaml").scenarios["tiny"])
+    scenario.objects["pole"] = ObjectCfg(kind="box", extents_m=[0.04, 0.04, height], pos=[x, y, 0])
+    write_scene(out, build_scene("tiny", scenario, (64, 48)))
+    return out
+
+
+def _pole_depth(scene_dir: Path, solve_dir: Path) -> float:
+    """The deepest penetration of anything into the pole along a solution [m]."""
+    traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
+    _, by_body = unscheduled_penetrations(load_scene_model(scene_dir), traj, 3)
+    return by_body["pole"].depth_m if "pole" in by_body else 0.0
+
+
+def _solve_beside(workdir: Path, scene_dir: Path, out: Path, monkeypatch, **collision) -> dict:
+    """tiny's solve on ``scene_dir`` with tiny's contacts and keyframes (the pole is not in
+    them), the compiled terms of the checkout; its metrics."""
+    monkeypatch.setenv(CACHE_ENV, str(Path(__file__).resolve().parents[1] / ".cache" / "casadi"))
+    cfg = scenario_solve(load_params(workdir / "params.yaml").solve, "tiny")
+    cfg = dataclasses.replace(cfg, collision=dataclasses.replace(cfg.collision, **collision))
+    root = workdir / "data" / "tiny"
+    solve_scenario(scene_dir, root / "contacts", root / "retarget", out, cfg)
+    return json.loads((out / "metrics.json").read_text())
+
+
+def test_a_pole_the_starting_set_misses_is_found_and_the_arm_freed(workdir, tmp_path, monkeypatch):
+    """Issue 48: a pole beside the table where tiny's solution reaches for the box: its
+    left hand and wrist pass through it (the starting set's palm spheres stop short of the
+    fingers, and no wrist or elbow pair has a fixed object). The rounds find the pairs and
+    end with the pole untouched."""
+    scene = _pole_in_tiny(workdir, tmp_path / "scene", 0.1, 0.26, 1.4)
+    assert _pole_depth(scene, workdir / "data" / "tiny" / "solve") > 0.005
+    metrics = _solve_beside(workdir, scene, tmp_path / "solve", monkeypatch)
+    assert metrics["success"], metrics["status"]
+    assert metrics["pairs_missing"] == [] and metrics["pairs_unfreed"] == []
+    pole_rounds = [r for r in metrics["collision_rounds"] if "pole" in r["deepest_pair"]]
+    assert pole_rounds and all(r["pairs_added"] > 0 for r in pole_rounds)
+    assert _pole_depth(scene, tmp_path / "solve") == 0.0
+
+
+def test_a_pair_the_rounds_cannot_free_fails_the_solve_naming_it(workdir, tmp_path, monkeypatch):
+    """Issue 48: a pole through the box where it rests on the table (the box's pose is given
+    until the pick): no round can free it, and the solve is recorded as failed with it."""
+    scene = _pole_in_tiny(workdir, tmp_path / "scene", 0.4, 0.0, 0.95)
+    metrics = _solve_beside(workdir, scene, tmp_path / "solve", monkeypatch, rounds=2)
+    assert not metrics["success"], metrics["status"]
+    named = [set(label.split(" | ")) for label in metrics["pairs_unfreed"]]
+    assert {"box/body", "pole/body"} in named
+    last = metrics["collision_rounds"][-1]
+    assert set(last["deepest_pair"].split(" | ")) == {"box/body", "pole/body"}
+    assert last["deepest_m"] < -0.02

@@ -100,6 +100,9 @@ class CollisionCfg:
         rounds: The most rounds of :attr:`found` pairs after the first solve.
         audit_margin_m: A pair of bodies closer than this in the replay is found [m].
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
+        unfreed_m: A pair still deeper than this at the last check fails the solve
+            (``Collision_Pairs_Unfreed``, the pairs in ``pairs_unfreed``), modelled or not:
+            the rounds could not free it [m]. The evaluation's ``max_penetration_tol_m``.
         object_environment: Between the corners of the object, while no support holds it,
             and every fixed object's bounding box, and between the obstacles' vertical and
             top edges and the object (as (11) the bottom corners of a level box are
@@ -130,6 +133,7 @@ class CollisionCfg:
     rounds: int = 3
     audit_margin_m: float = 0.005
     audit_substeps: int = 3
+    unfreed_m: float = 0.02
     margin_m: float = 0.01
     smoothing_m: float = 0.004
     length_m: float = 0.1
@@ -163,6 +167,8 @@ class CollisionCfg:
             errors.append(("audit_substeps", "must be in 0 .. 20"))
         if not 0.0 <= self.audit_margin_m <= 0.1:
             errors.append(("audit_margin_m", "must be in [0, 0.1] m"))
+        if self.unfreed_m < 0.0:
+            errors.append(("unfreed_m", "must be >= 0 m"))
         if self.softness <= 0.0:
             errors.append(("softness", "must be > 0"))
         if self.smoothing_m <= 0.0 or self.margin_m < np.log(3.0) * self.smoothing_m:

@@ -249,6 +249,7 @@ class Round:
         pairs_added: Pairs the problem lacked that join it.
         iterations, solve_time_s, status: Of the warm-started solve with them (0, 0, "":
             none, after the last check).
+        deepest_pair: The geoms of the closest pair (``a | b``; "" with none).
     """
 
     close_pairs: int
@@ -257,6 +258,7 @@ class Round:
     iterations: int = 0
     solve_time_s: float = 0.0
     status: str = ""
+    deepest_pair: str = ""
 
 
 def search(
@@ -265,50 +267,99 @@ def search(
     model: mujoco.MjModel,
     scene: Scene,
     cfg: CollisionCfg,
-) -> tuple[Trajectory, list[Round], list[ClosePair]]:
+) -> tuple[Trajectory, list[Round], list[ClosePair], list[ClosePair]]:
     """Check ``traj``, add the pairs it needs and solve on from it, at most ``cfg.rounds``
     times. Returns the last trajectory (its iterations and solve time those of every
-    round), the rounds, and the close pairs the problem still lacks pairs for after the
-    last check (empty: the solution needs none it lacks); with ``found`` off, no rounds or
-    a failed ``traj``: ``traj``."""
+    round), the rounds, the close pairs the problem still lacks pairs for after the last
+    check (empty: the solution needs none it lacks) and those still deeper than
+    ``cfg.unfreed_m``, modelled or not (the rounds could not free them); with ``found``
+    off, no rounds or a failed ``traj``: ``traj``.
+    """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
-    if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
-        return traj, rounds, []  # a failed solve is no solution to check
     names = scene.names
-    iterations, seconds = traj.iterations, traj.solve_time_s
-    while True:
+    searching = cfg.found != "off" and cfg.rounds > 0
+    totals = _Totals(traj)
+
+    def check(traj: Trajectory) -> tuple[list[ClosePair], ClosePair | None]:
+        nonlocal scene
         arrays = trajectory_arrays(traj, names)
         scene = dataclasses.replace(scene, object_q=traj.object_q, schedule=arrays)
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
+        return close, min(close, key=lambda c: c.distance, default=None)
+
+    if not searching or not traj.success:
+        return totals.of(traj), rounds, [], []  # a failed solve is no solution to check
+    after = 0
+    while True:
+        close, deepest = check(traj)
         new = found_pairs(close, pairs, scene)
         if cfg.found_hard != "off":
             new += promoted_pairs(close, pairs, scene)
-        deepest = min((c.distance for c in close), default=0.0)
-        if not new or len(rounds) == cfg.rounds:
-            rounds.append(Round(len(close), deepest, 0))
+        if not new or after == cfg.rounds:
+            rounds.append(_round(close, deepest, []))
             unmodelled = [c for c in close if found_pairs([c], pairs, scene)]
-            total = dataclasses.replace(traj, iterations=iterations, solve_time_s=seconds)
-            return total, rounds, unmodelled
+            unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
+            return totals.of(traj), rounds, unmodelled, unfreed
         pairs += new
+        after += 1
         print(
-            f"[solve] round {len(rounds) + 1}: {len(close)} close pairs (deepest "
-            f"{deepest * 1000:.1f} mm), {len(new)} pairs added; solving on",
+            f"[solve] round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
+            f"{len(new)} pairs added; solving on",
             flush=True,
         )
         tic = time.perf_counter()
         # From an optimum, the exact Hessian converges in a few iterations where the
         # Gauss-Newton one, cycling near the penalties' optimum, used all 150 of its own.
         traj = optimizer.solve(pairs=pairs, warm_start=traj, hessian="exact")
-        rounds.append(
-            Round(
-                len(close),
-                deepest,
-                len(new),
-                traj.iterations,
-                time.perf_counter() - tic,
-                traj.status,
-            )
+        rounds.append(_round(close, deepest, new, traj, time.perf_counter() - tic))
+        totals.add(traj)
+
+
+def _mm(pair: ClosePair | None) -> str:
+    return "none" if pair is None else f"{pair.distance * 1000:.1f} mm, {pair.label}"
+
+
+def _round(
+    close: list[ClosePair],
+    deepest: ClosePair | None,
+    new: list[CollisionPair],
+    traj: Trajectory | None = None,
+    seconds: float = 0.0,
+) -> Round:
+    """The record of one check (and of the solve it led to, if ``traj``)."""
+    solved = (
+        {}
+        if traj is None
+        else {"iterations": traj.iterations, "solve_time_s": seconds, "status": traj.status}
+    )
+    return Round(
+        len(close),
+        0.0 if deepest is None else deepest.distance,
+        len(new),
+        deepest_pair="" if deepest is None else deepest.label,
+        **solved,
+    )
+
+
+class _Totals:
+    """A solve's counts summed over its IPOPT calls (the first phase, the rounds)."""
+
+    def __init__(self, first: Trajectory) -> None:
+        self.iterations, self.exact_iterations = first.iterations, first.exact_iterations
+        self.solve_time_s, self.function_time_s = first.solve_time_s, first.function_time_s
+
+    def add(self, traj: Trajectory) -> None:
+        self.iterations += traj.iterations
+        self.exact_iterations += traj.exact_iterations
+        self.solve_time_s += traj.solve_time_s
+        self.function_time_s += traj.function_time_s
+
+    def of(self, traj: Trajectory) -> Trajectory:
+        return dataclasses.replace(
+            traj,
+            iterations=self.iterations,
+            exact_iterations=self.exact_iterations,
+            solve_time_s=self.solve_time_s,
+            function_time_s=self.function_time_s,
         )
-        iterations += traj.iterations
-        seconds += traj.solve_time_s

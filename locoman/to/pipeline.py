@@ -274,11 +274,13 @@ def solve_scenario(
     obstacles = {o.name: o for o in inputs.obstacles}
     scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames())
     model = load_scene_model(scene_dir)
-    traj, rounds, remaining = search(optimizer, traj, model, scene, cfg.collision)
-    if remaining and traj.success:
-        # The rounds ran out with pairs the solution needs still missing: not a solution.
-        traj = dataclasses.replace(traj, success=False, status="Collision_Pairs_Missing")
-    write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir, rounds, remaining)
+    traj, rounds, remaining, unfreed = search(optimizer, traj, model, scene, cfg.collision)
+    if (remaining or unfreed) and traj.success:
+        # The rounds ran out with pairs the solution needs still missing, or left a pair
+        # they could not free: not a solution.
+        status = "Collision_Pairs_Missing" if remaining else "Collision_Pairs_Unfreed"
+        traj = dataclasses.replace(traj, success=False, status=status)
+    write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir, rounds, remaining, unfreed)
     return traj
 
 
@@ -291,6 +293,7 @@ def write_solution(
     scene_dir: Path,
     rounds: Sequence[Round] = (),
     remaining: Sequence[ClosePair] = (),
+    unfreed: Sequence[ClosePair] = (),
 ) -> None:
     """The stage's outputs: trajectory, MCAP (frames and the scene's geometry), metrics (and
     timing)."""
@@ -364,6 +367,7 @@ def write_solution(
             "collision_rounds": [dataclasses.asdict(r) for r in rounds],
             "pairs_found": sum(r.pairs_added for r in rounds),
             "pairs_missing": sorted({c.label for c in remaining}),
+            "pairs_unfreed": sorted({c.label for c in unfreed}),
             "function_time_s": traj.function_time_s,
         },
     )
