@@ -235,3 +235,11 @@ def test_a_size_beyond_what_it_costs_is_refused_with_its_bound(raw, path, value)
     node[path[-1]] = value
     with pytest.raises(ConfigError, match=re.escape(".".join(path)) + r".*above its bound"):
         validate(bad)
+
+
+def test_a_negative_unfreed_depth_is_refused(raw):
+    """issue 48: the depth beyond which a pair the rounds leave fails the solve [m]."""
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["solve"]["collision"]["unfreed_m"] = -0.01
+    with pytest.raises(ConfigError, match=r"solve\.collision\.unfreed_m: must be >= 0 m"):
+        validate(bad)
