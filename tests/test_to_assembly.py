@@ -4,6 +4,8 @@ but for the residuals' Gauss-Newton Hessian where a flavour asks for it."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -13,8 +15,11 @@ from locoman.to.assembly import (
     BlockNLP,
     RowSpace,
     Term,
+    WarmStart,
+    carried_multipliers,
     load_derivatives,
     parameter_vector,
+    row_owners,
     structure_key,
 )
 from locoman.to.compile import SolverBuildError
@@ -214,3 +219,31 @@ def test_virtual_variables_reach_x_by_the_chain_rule(compiled: bool, hessian: st
     np.testing.assert_allclose(np.asarray(grad).ravel(), ref_grad, atol=1e-12)
     ref_hess = np.asarray(ca.Function("h", [x, lam_f, lam_g], [reference])(xv, 0.7, lgv))
     np.testing.assert_allclose(np.asarray(ca.densify(hess)), np.triu(ref_hess), atol=1e-12)
+
+
+def test_a_problem_with_more_rows_keeps_the_multipliers_of_the_calls_it_shares():
+    """A round of hard pairs adds calls (and rows) to a kind and a kind of its own: the
+    shared calls' rows keep their multipliers wherever they moved, the new rows start at 0,
+    and a call whose numbers changed starts afresh."""
+    a, share, _ = _terms()
+    rng = np.random.default_rng(2)
+    p = rng.normal(size=(3, 2))
+    old_rows = RowSpace()
+    own = old_rows.allocate(2, np.zeros(2), np.zeros(2))
+    old = [Block(a, np.array([[0, 1, 2], [3, 4, 5]]), p[:2], own)]
+    warm = WarmStart(np.zeros(N_X), np.zeros(N_X), np.array([1.0, 2.0, 3.0, 4.0]), row_owners(old))
+    # The new problem: share's rows first (a new kind), then a with a third call.
+    rows = RowSpace()
+    first = rows.allocate(1, np.zeros(2), np.zeros(2))
+    moved = rows.allocate(3, np.zeros(2), np.zeros(2))
+    new = [
+        Block(share, np.array([[2, 4]]), rng.normal(size=(1, 1)), first),
+        Block(a, np.array([[0, 1, 2], [3, 4, 5], [5, 6, 7]]), p, moved),
+    ]
+    carried = carried_multipliers(warm, new, rows.size)
+    assert carried is not None
+    np.testing.assert_array_equal(carried.lam_g, [0, 0, 1, 2, 3, 4, 0, 0])
+    changed = [new[0], dataclasses.replace(new[1], p=np.r_[p[:1], p[:1] + 1.0, p[2:]])]
+    again = carried_multipliers(warm, changed, rows.size)
+    np.testing.assert_array_equal(again.lam_g, [0, 0, 1, 2, 0, 0, 0, 0])
+    assert carried_multipliers(dataclasses.replace(warm, rows=None), new, rows.size) is None

@@ -18,8 +18,10 @@ from locoman.to.assembly import (
     BlockNLP,
     NLPResult,
     WarmStart,
+    carried_multipliers,
     load_derivatives,
     parameter_vector,
+    row_owners,
     structure_key,
 )
 from locoman.to.bounds import bounds, initial_guess
@@ -229,9 +231,12 @@ class TrajectoryOptimizer:
         X0 = np.clip(X0, lo, hi).ravel(order="F")
         warm = warm_start.warm_start if warm_start is not None else None
         if warm is not None and warm.lam_g.shape != (nlp.n_g,):
-            # Other constraint rows (pairs found under a hard treatment): its primal point
-            # only, the multipliers start afresh.
-            X0, warm = np.clip(warm.x, lo.ravel(order="F"), hi.ravel(order="F")), None
+            # More constraint rows (pairs found under a hard treatment): the rows it shares
+            # keep their multipliers, the new ones start at 0; without a record of its
+            # rows, its primal point only.
+            warm = carried_multipliers(warm, tr.blocks, nlp.n_g)
+            if warm is None:
+                X0 = np.clip(warm_start.warm_start.x, lo.ravel(order="F"), hi.ravel(order="F"))
         p = parameter_vector(tr.blocks)
         args = (X0, lo.ravel(order="F"), hi.ravel(order="F"), p)
         result = nlp.solve(*args, warm)
@@ -320,5 +325,5 @@ class TrajectoryOptimizer:
             subtask=np.array([self.schedule.subtask_of(k) for k in range(n)]),
             hand_points=self.inputs.hand_points.copy(),
             collision_pairs=len(tr.pairs),
-            warm_start=result.warm_start,
+            warm_start=dataclasses.replace(result.warm_start, rows=row_owners(tr.blocks)),
         )
