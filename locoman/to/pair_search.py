@@ -277,22 +277,16 @@ def search(
     """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
-    names = scene.names
-    searching = cfg.found != "off" and cfg.rounds > 0
     totals = _Totals(traj)
-
-    def check(traj: Trajectory) -> tuple[list[ClosePair], ClosePair | None]:
-        nonlocal scene
+    if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
+        return traj, rounds, [], []  # a failed solve is no solution to check
+    names = scene.names
+    after = 0
+    while True:
         arrays = trajectory_arrays(traj, names)
         scene = dataclasses.replace(scene, object_q=traj.object_q, schedule=arrays)
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
-        return close, min(close, key=lambda c: c.distance, default=None)
-
-    if not searching or not traj.success:
-        return totals.of(traj), rounds, [], []  # a failed solve is no solution to check
-    after = 0
-    while True:
-        close, deepest = check(traj)
+        deepest = min(close, key=lambda c: c.distance, default=None)
         new = found_pairs(close, pairs, scene)
         if cfg.found_hard != "off":
             new += promoted_pairs(close, pairs, scene)
