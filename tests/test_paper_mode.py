@@ -124,4 +124,6 @@ def test_a_keyframe_that_does_not_guide_has_no_keyframe_cost_and_starts_at_the_n
 def test_a_hatched_bar_says_why_in_a_few_letters():
     assert short_reason("Maximum_Iterations_Exceeded") == "iter"
     assert short_reason("Restoration_Failed") == "restor"
+    assert short_reason("Collision_Pairs_Missing") == "pairs"
+    assert short_reason("Collision_Pairs_Unfreed") == "unfreed"
     assert short_reason("ArtifactError: something") == "Artifa"

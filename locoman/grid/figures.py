@@ -175,8 +175,11 @@ def _cell_panels(records: Sequence[dict[str, Any]]) -> list[tuple[float, float]]
     return list(dict.fromkeys((r["box_mass"], r["initial_yaw"]) for r in records))
 
 
-# IPOPT's statuses, as a hatched bar of Fig. 6 says why the cell did not converge.
+# IPOPT's statuses and the found-pair search's, as a hatched bar of Fig. 6 says why the cell
+# did not converge.
 SHORT_REASONS = {
+    "Collision_Pairs_Missing": "pairs",
+    "Collision_Pairs_Unfreed": "unfreed",
     "Maximum_Iterations_Exceeded": "iter",
     "Maximum_WallTime_Exceeded": "time",
     "Maximum_CpuTime_Exceeded": "time",
@@ -190,7 +193,9 @@ SHORT_REASONS = {
 
 
 def short_reason(reason: str) -> str:
-    """A few letters for IPOPT's status (or the reason's first word)."""
+    """A few letters for IPOPT's status or the found-pair search's (``pairs``: the rounds
+    ended with pairs still missing, ``unfreed``: with a pair they could not free), or the
+    reason's first word."""
     return SHORT_REASONS.get(reason, reason.split(" ")[0][:6] or "?")
 
 
@@ -255,7 +260,7 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
             facecolor="white",
             edgecolor="black",
             hatch="//",
-            label="not converged (why: iter, time, infeas, restor, diverg)",
+            label="not converged (why: iter, time, infeas, restor, diverg, pairs, unfreed)",
         ),
         Line2D([], [], ls="", marker="^", color="black", label="beyond the axis bound"),
         Line2D([], [], ls="", marker="x", color="black", label="could not run"),
