@@ -260,7 +260,7 @@ def fig6(records: Sequence[dict[str, Any]], bound_m: float, title: str) -> Figur
             facecolor="white",
             edgecolor="black",
             hatch="//",
-            label="not converged (why: iter, time, infeas, restor, diverg, pairs, unfreed)",
+            label="not converged (why: iter, time, infeas,\nrestor, diverg, pairs, unfreed)",
         ),
         Line2D([], [], ls="", marker="^", color="black", label="beyond the axis bound"),
         Line2D([], [], ls="", marker="x", color="black", label="could not run"),
