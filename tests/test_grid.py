@@ -440,6 +440,10 @@ def test_fig6_claims_compare_all_against_none_cell_by_cell():
     assert fig6_claims(lower)[1].holds is True
     close = [{**r, "avg_penetration_m": 0.0004 + 0.0001 * (r["run"] == "none")} for r in lower]
     assert fig6_claims(close)[1].holds is None  # 0.1 mm apart in every cell: a tie
+    # A draw without NoKeyframe (WarmStart and AllKeyframe only) decides neither claim.
+    without_none = [r for r in lower if r["run"] == "all"]
+    for claim in fig6_claims(without_none):
+        assert claim.holds is None and "NoKeyframe not in this grid" in claim.evidence
 
 
 def test_the_figures_and_the_summary_draw_from_records():
