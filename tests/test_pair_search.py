@@ -10,9 +10,15 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_scene_model
 from locoman.sim.audit import Body, ClosePair, close_pairs, unscheduled_penetrations
-from locoman.to.collision import obstacles_from_objects
+from locoman.to.collision import (
+    box_edge_points,
+    edge_point_counts,
+    edge_points,
+    obstacles_from_objects,
+)
 from locoman.to.layout import ObjectModel
 from locoman.to.pair_search import FLOOR_BOX, Scene, found_pairs, pairs_for, promoted_pairs
+from locoman.to.transcription import object_boxes
 
 NODES = 4
 BOX_ON_TABLE = np.array([0.4, 0.0, 0.72, 0.0, 0.0, 0.0])
@@ -110,10 +116,11 @@ def test_found_pairs_cover_the_nodes_around_once_and_never_the_first(scene):
     assert all(p.numbers["centre"][2] == FLOOR_BOX.centre[2] for p in floor)
 
 
-def test_an_object_against_another_keeps_its_corners_and_the_others_rim_out(scene):
-    """A carried box into another object (S2's box into the trolley's platform): its
-    corners against the other's box, and points along the other box's edges against it, so
-    that the rim cannot cut its bottom between its corners; each pair once."""
+def test_an_object_against_another_keeps_its_edges_and_the_others_rim_out(scene):
+    """A carried box into another object (S2's box into the trolley's platform): points
+    along its edges (``spacing_m`` apart) against the other's box, and points along the
+    other box's edges against it, so that neither the rim nor a post cuts it between two
+    points; each pair once."""
     _, objects = scene
     box = ObjectModel.from_spec("box", objects["box"])
     other = ObjectModel.from_spec("crate", objects["box"] | {"kind": "box"})
@@ -123,11 +130,37 @@ def test_an_object_against_another_keeps_its_corners_and_the_others_rim_out(scen
     close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
     pairs = pairs_for(close, 2, scene_)
     assert {p.geometry for p in pairs} == {"object_point_object_box"}
-    corners = [p for p in pairs if (p.obj, p.box_obj) == (0, 1)]
+    own = [p for p in pairs if (p.obj, p.box_obj) == (0, 1)]
     rim = [p for p in pairs if (p.obj, p.box_obj) == (1, 0)]
-    assert len(corners) == 8 and len(rim) > 8
+    half = object_boxes(box)[0][1]
+    assert len(own) == len(box_edge_points(np.zeros(3), half, scene_.spacing_m)) > 8
+    assert len(rim) > 8
     assert len({p.label for p in pairs}) == len(pairs)
     assert len(found_pairs([close], [], scene_)) == 3 * len(pairs)
+
+
+def test_a_carried_box_against_the_table_or_the_floor_keeps_every_point(scene):
+    """A carried box into a fixed table: every point along its edges against the table and
+    every point along the table's edges against it, each its own pair (they shared one
+    label, and the search kept one of each); against the floor, the box's points alone
+    (the floor's edges lie 50 m away)."""
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
+    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+    table = next(iter(obstacles.values()))
+    carried = Body("object", "box", "box/body")
+    pairs = found_pairs(
+        [_close(carried, Body("fixed", table.name, f"{table.name}/top"))], [], scene_
+    )
+    centre, half = object_boxes(box)[0]
+    own = len(box_edge_points(centre, half, scene_.spacing_m))
+    spacing = min(scene_.spacing_m, float(min(half)))
+    rim = len(edge_points(table, edge_point_counts(table.half_extents, spacing)))
+    assert len(pairs) == 3 * (own + rim)  # nodes 1, 2, 3
+    floor = found_pairs([_close(carried, Body("floor", "floor", "floor"))], [], scene_)
+    assert len(floor) == 3 * own
+    assert {p.geometry for p in floor} == {"object_point_fixed_box"}
 
 
 def test_a_found_pair_still_penetrated_comes_back_hard(scene):

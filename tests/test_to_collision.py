@@ -13,12 +13,14 @@ from hypothesis import strategies as st
 from locoman.config.to import ContactCfg
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
+from locoman.scene.rotations import rpy_to_matrix
 from locoman.to.collision import (
     KINDS,
     CollisionCfg,
     Obstacle,
     box_clearance,
     box_corners,
+    box_edge_points,
     edge_point_counts,
     edge_points,
     link_spheres,
@@ -230,6 +232,52 @@ def test_palm_frames_are_square_to_the_hand_capsule():
         # The palm faces away from the body: -y of the left hand link, +y of the right.
         side = -1.0 if name.startswith("left") else 1.0
         assert side * axes[1, 2] > 0.9
+
+
+def test_box_edge_points_cover_all_twelve_edges_once_at_most_the_spacing_apart():
+    centre, half = np.array([0.1, -0.2, 0.1]), np.array([0.15, 0.15, 0.1])
+    points = box_edge_points(centre, half, 0.04)
+    local = points - centre
+    on_face = np.isclose(np.abs(local), half)
+    assert np.all(on_face.sum(axis=1) >= 2)  # on an edge
+    assert len(np.unique(np.round(points, 9), axis=0)) == len(points)  # each once
+    assert on_face.all(axis=1).sum() == 8  # the corners
+    # 9 points along each x and y edge (0.3 m at <= 0.04 m), 6 along each z edge (0.2 m).
+    assert len(points) == 8 + 4 * 7 + 4 * 7 + 4 * 4
+    for axis in range(3):
+        along = local[on_face.sum(axis=1) >= 2]
+        edge = along[np.isclose(local[:, (axis + 1) % 3], half[(axis + 1) % 3])]
+        edge = edge[np.isclose(edge[:, (axis + 2) % 3], half[(axis + 2) % 3])]
+        assert np.diff(np.sort(edge[:, axis])).max() <= 0.04 + 1e-12
+
+
+def _signed_box_distance(points: np.ndarray, centre: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Exact signed distance of points from an axis-aligned box [m] (negative inside)."""
+    gap = np.abs(points - centre) - half
+    outside = np.linalg.norm(np.maximum(gap, 0.0), axis=1)
+    return np.where(gap.max(axis=1) > 0.0, outside, gap.max(axis=1))
+
+
+def test_a_tilted_box_cutting_a_post_between_its_corners_is_caught_by_its_edge_points():
+    """S2, AllKeyframe at 7.5 kg and 1.2 rad, node 78 (issue 48): the carried box, tilted
+    (roll 0.47, pitch 0.34 rad), cuts the trolley's 30-mm handle frame between its corners.
+    Its corners and the frame's edge points (spaced by the box's smallest half size) all
+    stay out, so the found pairs could not free it; points along the box's edges 40 mm
+    apart go inside."""
+    half = np.array([0.15, 0.15, 0.1])  # the box; its frame at its bottom face
+    centre = np.array([0.0, 0.0, 0.1])
+    frame_centre, frame_half = np.array([-0.385, 0.0, 0.758]), np.array([0.015, 0.25, 0.208])
+    p, R = np.array([-0.2604, 0.0425, 0.6926]), rpy_to_matrix(np.array([0.4657, 0.3443, -2.2167]))
+
+    def in_frame(local: np.ndarray) -> np.ndarray:  # box points -> the frame's clearance
+        return _signed_box_distance(p + local @ R.T, frame_centre, frame_half)
+
+    corners = centre + np.array(box_corners(half)) - np.array([0.0, 0.0, half[2]])
+    assert in_frame(corners).min() > 0.005
+    rim = Obstacle("frame", frame_centre, 0.0, frame_half)
+    rim_points = edge_points(rim, edge_point_counts(frame_half, float(min(half))))
+    assert _signed_box_distance((rim_points - p) @ R, centre, half).min() > 0.005
+    assert in_frame(box_edge_points(centre, half, 0.04)).min() < -0.01
 
 
 def test_edge_points_run_along_every_vertical_and_top_edge_at_most_the_spacing_apart():

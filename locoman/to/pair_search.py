@@ -4,7 +4,7 @@ After a solve, the solution is replayed in the MuJoCo scene (:mod:`locoman.sim.a
 pair of bodies closer than a margin that the contact schedule does not let touch is mapped
 to the TO's own pairs that keep them apart (the robot link's spheres against the other
 link's spheres, the object's box nearest the contact, the fixed object's box or the floor;
-a carried object's corners against what it came close to), at the nodes around where it
+points along a carried object's edges against what it came close to), at the nodes around where it
 happened. Those the problem does not have yet join it, under the ``found`` kind's
 treatment, and the solve goes on from the previous primal-dual point. Since the terms are
 compiled once per robot, a round costs a new assembly (seconds) and the warm-started solve.
@@ -22,7 +22,13 @@ from locoman.retarget.robot import ContactFrames
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.sim.audit import ROBOT, Body, ClosePair, allowed_at, close_pairs
-from locoman.to.collision import CollisionCfg, Obstacle, edge_point_counts, edge_points
+from locoman.to.collision import (
+    CollisionCfg,
+    Obstacle,
+    box_edge_points,
+    edge_point_counts,
+    edge_points,
+)
 from locoman.to.layout import ObjectModel
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
 from locoman.to.spheres import RobotSphere, foot_spheres, link_sphere_list
@@ -63,13 +69,15 @@ class Scene:
     """What the search maps MuJoCo's bodies to: the TO's objects (in its order) with their
     poses along the solution, the fixed objects' boxes, the robot's frames, and the
     solution's contact schedule (:func:`trajectory_arrays`; None: touching allowed
-    nowhere)."""
+    nowhere), and how far apart the points along a carried object's edges lie [m]
+    (:attr:`CollisionCfg.found_spacing_m`)."""
 
     objects: tuple[ObjectModel, ...]
     object_q: np.ndarray  # (N, M, 6)
     obstacles: dict[str, Obstacle]
     frames: ContactFrames
     schedule: dict[str, np.ndarray] | None = None
+    spacing_m: float = 0.04
 
     def allowed(self, k: int, close: ClosePair) -> bool:
         """The schedule lets ``close``'s bodies touch at node k."""
@@ -85,24 +93,27 @@ class Scene:
 def _object_side(
     k: int, j: int, other: Body, point: np.ndarray, scene: Scene
 ) -> list[CollisionPair]:
-    """Pairs keeping carried object j off ``other``: its corners against a fixed box or
-    the floor (with the obstacle's edges against it); against another object, the corners
-    of j's box nearest the contact against that object's nearest box, and points along
-    that box's vertical and top edges (spaced by j's smallest half size) against j's box,
-    so that a platform's rim cannot cut into j's bottom between its corners."""
+    """Pairs keeping carried object j off ``other``: points along all its edges
+    (``scene.spacing_m`` apart) against a fixed box or the floor (with the obstacle's
+    edges against it; not the floor's, which lie far away); against another object, the
+    points along the edges of j's box nearest the contact against that object's nearest
+    box, and points along that box's vertical and top edges (spaced alike, or by j's
+    smallest half size where less) against j's box, so that a platform's rim cannot cut
+    into j's bottom, nor a tilted edge of j into a post, between two points."""
     obj = scene.objects[j]
     if other.kind in ("fixed", "floor"):
         obstacle = FLOOR_BOX if other.kind == "floor" else scene.obstacles[other.name]
-        return list(object_environment_pairs(k, j, obj, (obstacle,), KIND))
+        edges = other.kind == "fixed"
+        return list(object_environment_pairs(k, j, obj, (obstacle,), KIND, scene.spacing_m, edges))
     if other.kind != "object":
         return []
     i = scene.names.index(other.name)
     a = _nearest_box(obj, scene.object_q[k, j], point)
     b = _nearest_box(scene.objects[i], scene.object_q[k, i], point)
     (own_centre, own_half), (centre, half) = object_boxes(obj)[a], object_boxes(scene.objects[i])[b]
-    corners = own_centre + _CORNERS * own_half
+    points = box_edge_points(own_centre, own_half, scene.spacing_m)
     rim = Obstacle("rim", centre, 0.0, half)
-    spacing = float(min(own_half))
+    spacing = min(scene.spacing_m, float(min(own_half)))
     edges = edge_points(rim, edge_point_counts(half, spacing))
     names = scene.names
     out = [
@@ -113,9 +124,9 @@ def _object_side(
             obj=j,
             box_obj=i,
             numbers={"point": c, "centre": centre, "half": half},
-            label=f"{names[j]}/{a}/corner{n} | {names[i]}/{b}",
+            label=f"{names[j]}/{a}/point{n} | {names[i]}/{b}",
         )
-        for n, c in enumerate(corners)
+        for n, c in enumerate(points)
     ]
     out += [
         CollisionPair(
@@ -130,9 +141,6 @@ def _object_side(
         for n, e in enumerate(edges)
     ]
     return out
-
-
-_CORNERS = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
 
 
 def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
@@ -284,11 +292,13 @@ def search(
     after = 0
     while True:
         arrays = trajectory_arrays(traj, names)
-        scene = dataclasses.replace(scene, object_q=traj.object_q, schedule=arrays)
+        scene = dataclasses.replace(
+            scene, object_q=traj.object_q, schedule=arrays, spacing_m=cfg.found_spacing_m
+        )
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
         deepest = min(close, key=lambda c: c.distance, default=None)
         new = found_pairs(close, pairs, scene)
-        if cfg.found_hard != "off":
+        if cfg.found_hard not in ("off", cfg.found):  # the same again: a duplicate row
             new += promoted_pairs(close, pairs, scene)
         if not new or after == cfg.rounds:
             rounds.append(_round(close, deepest, []))

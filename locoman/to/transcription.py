@@ -34,6 +34,7 @@ from locoman.to.collision import (
     CollisionCfg,
     Obstacle,
     box_corners,
+    box_edge_points,
     edge_point_counts,
     edge_points,
 )
@@ -393,30 +394,42 @@ def object_environment_pairs(
     obj: ObjectModel,
     obstacles: tuple[Obstacle, ...],
     kind: str = "object_environment",
+    spacing: float | None = None,
+    obstacle_edges: bool = True,
 ) -> Iterator[CollisionPair]:
-    """Each corner of carried object j against each obstacle, and the obstacles' vertical
-    and top edges (points, spaced by the object's smallest half size) against the object."""
+    """Points of carried object j against each obstacle, and the obstacles' vertical and
+    top edges (points, spaced by the object's smallest half size) against the object. The
+    object's points are its corners, or with ``spacing`` [m] points along all its edges at
+    most that far apart (:func:`box_edge_points`), which then spaces the obstacles' edge
+    points too where it is the smaller; ``obstacle_edges`` False: the object's points alone
+    (the floor, whose edges lie far away)."""
     centre, half = _object_box(obj)
-    corners = box_corners(half)
+    if spacing is None:
+        points, edge_spacing = box_corners(half), _smallest_half_size(obj)
+    else:
+        points = box_edge_points(centre, half, spacing)
+        edge_spacing = min(spacing, _smallest_half_size(obj))
     for obstacle in obstacles:
-        for c in corners:
+        for n, c in enumerate(points):
             yield CollisionPair(
                 k,
                 kind,
                 "object_point_fixed_box",
                 obj=j,
                 numbers={"point": c, **_obstacle_numbers(obstacle)},
-                label=f"{obj.name}/corner | {obstacle.name}",
+                label=f"{obj.name}/point{n} | {obstacle.name}",
             )
-        counts = edge_point_counts(obstacle.half_extents, _smallest_half_size(obj))
-        for point in edge_points(obstacle, counts):
+        if not obstacle_edges:
+            continue
+        counts = edge_point_counts(obstacle.half_extents, edge_spacing)
+        for n, point in enumerate(edge_points(obstacle, counts)):
             yield CollisionPair(
                 k,
                 kind,
                 "fixed_point_object_box",
                 obj=j,
                 numbers={"point": point, "centre": centre, "half": half},
-                label=f"{obstacle.name}/edge | {obj.name}",
+                label=f"{obstacle.name}/edge{n} | {obj.name}",
             )
 
 
