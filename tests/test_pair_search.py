@@ -3,6 +3,8 @@ evaluation's check between nodes. On tiny's scene (a box on a table, a side tabl
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -11,13 +13,21 @@ from locoman.scene import g1
 from locoman.scene.io import load_objects, load_scene_model
 from locoman.sim.audit import Body, ClosePair, close_pairs, unscheduled_penetrations
 from locoman.to.collision import (
+    CollisionCfg,
     box_edge_points,
     edge_point_counts,
     edge_points,
     obstacles_from_objects,
 )
 from locoman.to.layout import ObjectModel
-from locoman.to.pair_search import FLOOR_BOX, Scene, found_pairs, pairs_for, promoted_pairs
+from locoman.to.pair_search import (
+    FLOOR_BOX,
+    Scene,
+    found_pairs,
+    pairs_for,
+    promoted_pairs,
+    round_pairs,
+)
 from locoman.to.transcription import object_boxes
 
 NODES = 4
@@ -179,6 +189,29 @@ def test_a_found_pair_still_penetrated_comes_back_hard(scene):
     assert promoted_pairs([close], found + hard, scene_) == []
     near = ClosePair(2, 0.0, close.a, close.b, 0.003, close.point)  # within the margin
     assert promoted_pairs([near], found, scene_) == []
+
+
+def test_a_rounds_pairs_are_penalties_first_and_hard_after(scene):
+    """``found`` is the first round's treatment, ``found_hard`` a later round's (and that of
+    the first's pairs that come back); with the two the same, no pair comes twice."""
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
+    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+    knee = Body("robot", "left_knee_link", "left_knee_link#7")
+    table = _close(knee, Body("fixed", "table", "table/top"))
+    cfg = CollisionCfg()
+    first = round_pairs([table], [], scene_, cfg, first=True)
+    assert first and {p.kind for p in first} == {"found"}
+    later = round_pairs([table], [], scene_, cfg, first=False)
+    assert len(later) == len(first) and {p.kind for p in later} == {"found_hard"}
+    # The first round's pairs, still penetrated: back as found_hard, once.
+    again = round_pairs([table], first, scene_, cfg, first=False)
+    assert len(again) == len(first) and {p.kind for p in again} == {"found_hard"}
+    assert round_pairs([table], first + again, scene_, cfg, first=False) == []
+    same = dataclasses.replace(cfg, found="constraint", found_hard="constraint")
+    assert {p.kind for p in round_pairs([table], [], scene_, same, first=False)} == {"found"}
+    assert round_pairs([table], first, scene_, same, first=False) == []
 
 
 def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):

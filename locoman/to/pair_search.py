@@ -238,6 +238,29 @@ def promoted_pairs(
     return out
 
 
+def round_pairs(
+    close: list[ClosePair],
+    existing: list[CollisionPair],
+    scene: Scene,
+    cfg: CollisionCfg,
+    first: bool,
+) -> list[CollisionPair]:
+    """What a check of a solution adds: the :func:`found_pairs` of ``close``, as ``found``
+    (``KIND``) in the ``first`` round and as ``found_hard`` (``PROMOTED``) after, and the
+    :func:`promoted_pairs`; with ``found_hard`` off or the same as ``found``, the found
+    pairs alone, as ``found`` (the same pair again would be a duplicate row)."""
+    new = found_pairs(close, existing, scene)
+    if cfg.found_hard in ("off", cfg.found):
+        return new
+    if not first:
+        # The first round moved the solution near a valid one; under the penalty a later
+        # round's pairs let a hand stay 24 mm in a post, a node further each round. (11)
+        # from the first round stalled in restoration instead: a box 88 mm through a
+        # 30-mm post, its points pushed out of both sides.
+        new = [dataclasses.replace(pair, kind=PROMOTED) for pair in new]
+    return new + promoted_pairs(close, existing, scene)
+
+
 def trajectory_arrays(traj: Trajectory, names: list[str]) -> dict[str, np.ndarray]:
     """What :func:`locoman.sim.audit.close_pairs` reads of a trajectory."""
     fields = ("q", "object_q", "foot_object", "hand_object", "support_kind", "support_base")
@@ -297,15 +320,7 @@ def search(
         )
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
         deepest = min(close, key=lambda c: c.distance, default=None)
-        new = found_pairs(close, pairs, scene)
-        if cfg.found_hard not in ("off", cfg.found):  # the same again: a duplicate row
-            if after > 0:
-                # The first round moved the solution near a valid one; under the penalty
-                # a later round's pairs let a hand stay 24 mm in a post, a node further
-                # each round. (11) from the first round stalled in restoration instead:
-                # a box 88 mm through a 30-mm post, its points pushed out both sides.
-                new = [dataclasses.replace(pair, kind=PROMOTED) for pair in new]
-            new += promoted_pairs(close, pairs, scene)
+        new = round_pairs(close, pairs, scene, cfg, first=after == 0)
         if not new or after == cfg.rounds:
             rounds.append(_round(close, deepest, []))
             unmodelled = [c for c in close if found_pairs([c], pairs, scene)]
