@@ -191,9 +191,9 @@ def test_a_found_pair_still_penetrated_comes_back_hard(scene):
     assert promoted_pairs([near], found, scene_) == []
 
 
-def test_a_rounds_pairs_are_penalties_first_and_hard_after(scene):
-    """``found`` is the first round's treatment, ``found_hard`` a later round's (and that of
-    the first's pairs that come back); with the two the same, no pair comes twice."""
+def test_a_rounds_pairs_are_found_then_promoted_once(scene):
+    """A check adds the found pairs under ``found``, and those still penetrated a round
+    later under ``found_hard``, once; with the two the same, no pair comes twice."""
     _, objects = scene
     box = ObjectModel.from_spec("box", objects["box"])
     obstacles = {o.name: o for o in obstacles_from_objects(objects)}
@@ -201,17 +201,32 @@ def test_a_rounds_pairs_are_penalties_first_and_hard_after(scene):
     knee = Body("robot", "left_knee_link", "left_knee_link#7")
     table = _close(knee, Body("fixed", "table", "table/top"))
     cfg = CollisionCfg()
-    first = round_pairs([table], [], scene_, cfg, first=True)
+    first = round_pairs([table], [], scene_, cfg)
     assert first and {p.kind for p in first} == {"found"}
-    later = round_pairs([table], [], scene_, cfg, first=False)
-    assert len(later) == len(first) and {p.kind for p in later} == {"found_hard"}
-    # The first round's pairs, still penetrated: back as found_hard, once.
-    again = round_pairs([table], first, scene_, cfg, first=False)
+    again = round_pairs([table], first, scene_, cfg)
     assert len(again) == len(first) and {p.kind for p in again} == {"found_hard"}
-    assert round_pairs([table], first + again, scene_, cfg, first=False) == []
+    assert round_pairs([table], first + again, scene_, cfg) == []
     same = dataclasses.replace(cfg, found="constraint", found_hard="constraint")
-    assert {p.kind for p in round_pairs([table], [], scene_, same, first=False)} == {"found"}
-    assert round_pairs([table], first, scene_, same, first=False) == []
+    assert round_pairs([table], first, scene_, same) == []
+
+
+def test_pairs_with_the_same_label_against_another_box_are_not_the_same(scene):
+    """A hand's pairs against a trolley's platform were labelled like those against its
+    handle frame (the one box given was ``trolley/0`` either way), so the frame's never
+    joined once the platform's had: a pair is its geometry and numbers, not its label."""
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames())
+    hand = Body("robot", "right_rubber_hand", "right_rubber_hand#64")
+    close = _close(hand, Body("object", "box", "box/body"))
+    pairs = found_pairs([close], [], scene_)
+    assert pairs and all(p.label.endswith("box/0") for p in pairs)
+    elsewhere = [
+        dataclasses.replace(p, numbers=p.numbers | {"centre": p.numbers["centre"] + 0.3})
+        for p in pairs
+    ]
+    assert [p.label for p in found_pairs([close], elsewhere, scene_)] == [p.label for p in pairs]
+    assert found_pairs([close], pairs, scene_) == []
 
 
 def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):

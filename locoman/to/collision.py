@@ -93,14 +93,11 @@ class CollisionCfg:
             of bodies that a replay of the solution in MuJoCo finds closer than
             ``audit_margin_m`` and the TO does not model joins the problem at the nodes
             around, and the solve goes on from where it stopped, at most ``rounds`` times;
-            ``off``: no rounds, the minimal set alone. This treatment is the first round's.
-        found_hard: The treatment of the pairs found in a later round, and of the first
-            round's pairs still penetrated a round later (the pairs that keep coming back: a
-            hand through a post, a carried box into a platform); ``off``, or the same as
-            ``found``: every found pair has ``found``'s. Under the penalty (12) alone a
-            hand stayed 24 mm in S2's trolley post, a node or a pose further along each
-            round; under (11) from the first round a box 88 mm through the post stalled
-            in restoration.
+            ``off``: no rounds, the minimal set alone.
+        found_hard: The found pairs still penetrated after a round with them (the pairs that
+            keep coming back: a hand through a post, a carried box into a platform) join
+            again under this treatment; ``off``, or the same as ``found``: they stay as
+            they are.
         rounds: The most rounds of :attr:`found` pairs after the first solve.
         audit_margin_m: A pair of bodies closer than this in the replay is found [m].
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.

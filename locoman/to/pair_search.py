@@ -41,7 +41,7 @@ from locoman.to.transcription import (
 )
 
 KIND = "found"
-PROMOTED = "found_hard"  # a pair found after the first round, or penetrated a round later
+PROMOTED = "found_hard"  # a found pair still penetrated after a round with it
 # The floor as a box under it, for a link or a carried object that reaches it.
 FLOOR_BOX = Obstacle("floor", np.array([0.0, 0.0, -0.5]), 0.0, np.array([50.0, 50.0, 0.5]))
 
@@ -162,8 +162,8 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
         if b.kind == "object":
             j = scene.names.index(b.name)
             boxes = object_boxes(scene.objects[j])
-            nearest = [boxes[_nearest_box(scene.objects[j], scene.object_q[k, j], close.point)]]
-            return list(sphere_box_pairs(k, KIND, spheres, nearest, j, b.name))
+            i = _nearest_box(scene.objects[j], scene.object_q[k, j], close.point)
+            return list(sphere_box_pairs(k, KIND, spheres, boxes[i : i + 1], j, b.name, first=i))
         obstacle = FLOOR_BOX if b.kind == "floor" else scene.obstacles[b.name]
         return list(obstacle_pairs(k, KIND, spheres, obstacle))
     if a.kind != "object" and b.kind == "object":
@@ -174,9 +174,16 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
 
 
 def _key(pair: CollisionPair) -> tuple:
-    """What makes two pairs the same, whatever their kind."""
-    sides = tuple(sorted(pair.label.split(" | ")))
-    return (pair.node, round(pair.fraction, 6), pair.geometry, sides)
+    """What makes two pairs the same, whatever their kind: where, the geometry, the spheres
+    (either way round), the objects and the numbers. Not the label: a hand's pairs against
+    the trolley's handle frame were labelled like those against its platform (both
+    ``trolley/0``), so once it had the platform's, the frame's never joined."""
+    spheres = tuple(sorted(s.name for s in (pair.sphere, pair.other) if s is not None))
+    numbers = tuple(
+        (name, tuple(np.round(np.ravel(value), 9))) for name, value in sorted(pair.numbers.items())
+    )
+    where = (pair.node, round(pair.fraction, 6))
+    return (*where, pair.geometry, spheres, pair.obj, pair.box_obj, numbers)
 
 
 def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[CollisionPair]:
@@ -239,25 +246,14 @@ def promoted_pairs(
 
 
 def round_pairs(
-    close: list[ClosePair],
-    existing: list[CollisionPair],
-    scene: Scene,
-    cfg: CollisionCfg,
-    first: bool,
+    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, cfg: CollisionCfg
 ) -> list[CollisionPair]:
-    """What a check of a solution adds: the :func:`found_pairs` of ``close``, as ``found``
-    (``KIND``) in the ``first`` round and as ``found_hard`` (``PROMOTED``) after, and the
-    :func:`promoted_pairs`; with ``found_hard`` off or the same as ``found``, the found
-    pairs alone, as ``found`` (the same pair again would be a duplicate row)."""
+    """What a check of a solution adds: the :func:`found_pairs` of ``close`` (``found``'s
+    treatment) and, with ``found_hard`` on and not the same as ``found`` (the same pair
+    again would be a duplicate row), the :func:`promoted_pairs`."""
     new = found_pairs(close, existing, scene)
     if cfg.found_hard in ("off", cfg.found):
         return new
-    if not first:
-        # The first round moved the solution near a valid one; under the penalty a later
-        # round's pairs let a hand stay 24 mm in a post, a node further each round. (11)
-        # from the first round stalled in restoration instead: a box 88 mm through a
-        # 30-mm post, its points pushed out of both sides.
-        new = [dataclasses.replace(pair, kind=PROMOTED) for pair in new]
     return new + promoted_pairs(close, existing, scene)
 
 
@@ -320,7 +316,7 @@ def search(
         )
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
         deepest = min(close, key=lambda c: c.distance, default=None)
-        new = round_pairs(close, pairs, scene, cfg, first=after == 0)
+        new = round_pairs(close, pairs, scene, cfg)
         if not new or after == cfg.rounds:
             rounds.append(_round(close, deepest, []))
             unmodelled = [c for c in close if found_pairs([c], pairs, scene)]

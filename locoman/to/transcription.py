@@ -290,9 +290,18 @@ def object_boxes(obj: ObjectModel) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def sphere_box_pairs(
-    node: int, kind: str, spheres, boxes, j: int, name: str, touching: bool = False
+    node: int,
+    kind: str,
+    spheres,
+    boxes,
+    j: int,
+    name: str,
+    touching: bool = False,
+    first: int = 0,
 ) -> Iterator[CollisionPair]:
-    for b, (centre, half) in enumerate(boxes):
+    """Each sphere against each of object j's ``boxes``, labelled by box index from ``first``
+    (a slice of the object's boxes keeps their own)."""
+    for b, (centre, half) in enumerate(boxes, start=first):
         for s in spheres:
             yield CollisionPair(
                 node,
