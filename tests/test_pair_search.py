@@ -85,7 +85,7 @@ def test_a_pose_between_two_nodes_is_checked(scene):
 
 
 def test_the_arm_in_the_torso_is_found_and_mapped_to_sphere_pairs(scene):
-    model, objects = scene
+    model, _ = scene
     q = np.tile(g1.standing_q35(), (NODES, 1))
     q[1:, 6 + g1.G1_JOINT_NAMES.index("left_shoulder_roll_joint")] = -0.6
     close = close_pairs(
@@ -93,12 +93,20 @@ def test_the_arm_in_the_torso_is_found_and_mapped_to_sphere_pairs(scene):
     )
     self_pairs = [c for c in close if c.a.kind == c.b.kind == "robot"]
     assert self_pairs and all(c.node >= 1 for c in self_pairs)  # node 0 is given
-    box = ObjectModel.from_spec("box", objects["box"])
-    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
-    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
-    pair = pairs_for(self_pairs[0], 2, scene_)
+    pair = pairs_for(self_pairs[0], 2, _box_by_the_table(scene))
     assert pair and {p.geometry for p in pair} == {"sphere_sphere"}
     assert all(p.kind == "found" and p.node == 2 for p in pair)
+
+
+def _box_by_the_table(scene) -> Scene:
+    """The scene's box on its table, at every node, with the fixed objects."""
+    _, objects = scene
+    box = ObjectModel.from_spec("box", objects["box"])
+    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
+    return Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+
+
+KNEE = Body("robot", "left_knee_link", "left_knee_link#7")
 
 
 def _close(a: Body, b: Body, node: int = 2, fraction: float = 0.0) -> ClosePair:
@@ -106,23 +114,19 @@ def _close(a: Body, b: Body, node: int = 2, fraction: float = 0.0) -> ClosePair:
 
 
 def test_found_pairs_cover_the_nodes_around_once_and_never_the_first(scene):
-    _, objects = scene
-    box = ObjectModel.from_spec("box", objects["box"])
-    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
-    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
-    knee = Body("robot", "left_knee_link", "left_knee_link#7")
+    scene_ = _box_by_the_table(scene)
     table = Body("fixed", "table", "table/top")
-    new = found_pairs([_close(knee, table)], [], scene_)
+    new = found_pairs([_close(KNEE, table)], [], scene_)
     assert {p.node for p in new} == {1, 2, 3}
     assert {p.geometry for p in new} == {"sphere_fixed_box"}
     assert len(new) == 3 * 6  # six knee spheres at each node
-    assert found_pairs([_close(knee, table)], new, scene_) == []  # already there
+    assert found_pairs([_close(KNEE, table)], new, scene_) == []  # already there
     # Between nodes 0 and 1: at nodes 1 and 2 (node 0 is given), and where along the step.
-    first = found_pairs([_close(knee, table, node=0, fraction=0.25)], [], scene_)
+    first = found_pairs([_close(KNEE, table, node=0, fraction=0.25)], [], scene_)
     assert {p.node for p in first if p.fraction == 0.0} == {1, 2}
     assert {(p.node, p.fraction) for p in first if p.fraction} == {(0, 0.25)}
     assert len(first) == 3 * 6
-    floor = found_pairs([_close(knee, Body("floor", "floor", "floor"))], [], scene_)
+    floor = found_pairs([_close(KNEE, Body("floor", "floor", "floor"))], [], scene_)
     assert all(p.numbers["centre"][2] == FLOOR_BOX.centre[2] for p in floor)
 
 
@@ -154,11 +158,8 @@ def test_a_carried_box_against_the_table_or_the_floor_keeps_every_point(scene):
     every point along the table's edges against it, each its own pair (they shared one
     label, and the search kept one of each); against the floor, the box's points alone
     (the floor's edges lie 50 m away)."""
-    _, objects = scene
-    box = ObjectModel.from_spec("box", objects["box"])
-    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
-    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
-    table = next(iter(obstacles.values()))
+    scene_ = _box_by_the_table(scene)
+    (box,), table = scene_.objects, next(iter(scene_.obstacles.values()))
     carried = Body("object", "box", "box/body")
     pairs = found_pairs(
         [_close(carried, Body("fixed", table.name, f"{table.name}/top"))], [], scene_
@@ -176,12 +177,8 @@ def test_a_carried_box_against_the_table_or_the_floor_keeps_every_point(scene):
 def test_a_found_pair_still_penetrated_comes_back_hard(scene):
     """The pairs that keep coming back (issue 48): a penetration whose pairs the problem has
     already returns them as ``found_hard``, once; one within the margin only does not."""
-    _, objects = scene
-    box = ObjectModel.from_spec("box", objects["box"])
-    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
-    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
-    knee = Body("robot", "left_knee_link", "left_knee_link#7")
-    close = _close(knee, Body("fixed", "table", "table/top"))
+    scene_ = _box_by_the_table(scene)
+    close = _close(KNEE, Body("fixed", "table", "table/top"))
     assert promoted_pairs([close], [], scene_) == []  # not modelled yet: found first
     found = found_pairs([close], [], scene_)
     hard = promoted_pairs([close], found, scene_)
@@ -194,12 +191,8 @@ def test_a_found_pair_still_penetrated_comes_back_hard(scene):
 def test_a_rounds_pairs_are_found_then_promoted_once(scene):
     """A check adds the found pairs under ``found``, and those still penetrated a round
     later under ``found_hard``, once; with the two the same, no pair comes twice."""
-    _, objects = scene
-    box = ObjectModel.from_spec("box", objects["box"])
-    obstacles = {o.name: o for o in obstacles_from_objects(objects)}
-    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
-    knee = Body("robot", "left_knee_link", "left_knee_link#7")
-    table = _close(knee, Body("fixed", "table", "table/top"))
+    scene_ = _box_by_the_table(scene)
+    table = _close(KNEE, Body("fixed", "table", "table/top"))
     cfg = CollisionCfg()
     first = round_pairs([table], [], scene_, cfg)
     assert first and {p.kind for p in first} == {"found"}
