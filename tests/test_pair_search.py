@@ -4,6 +4,7 @@ evaluation's check between nodes. On tiny's scene (a box on a table, a side tabl
 from __future__ import annotations
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from locoman.to.collision import (
     obstacles_from_objects,
 )
 from locoman.to.layout import ObjectModel
+from locoman.to.optimizer import Trajectory
 from locoman.to.pair_search import (
     FLOOR_BOX,
     Scene,
@@ -27,6 +29,7 @@ from locoman.to.pair_search import (
     pairs_for,
     promoted_pairs,
     round_pairs,
+    search,
 )
 from locoman.to.transcription import object_boxes
 
@@ -220,6 +223,47 @@ def test_pairs_with_the_same_label_against_another_box_are_not_the_same(scene):
     ]
     assert [p.label for p in found_pairs([close], elsewhere, scene_)] == [p.label for p in pairs]
     assert found_pairs([close], pairs, scene_) == []
+
+
+class _Stuck:
+    """An optimizer that moves nothing: each solve returns the trajectory it starts from, as
+    a solve whose pairs cannot be met within its tolerance would leave it."""
+
+    def __init__(self) -> None:
+        self.transcription = SimpleNamespace(pairs=[])
+        self.pairs: list[int] = []
+
+    def solve(self, pairs, warm_start, hessian):
+        self.pairs.append(len(pairs))
+        return warm_start
+
+
+def _solved(arrays: dict) -> Trajectory:
+    """A converged trajectory of ``arrays`` (:func:`_trajectory`), every other field empty."""
+    empty = {"str": "", "bool": False, "int": 0, "float": 0.0}
+    fields = {f.name: empty.get(f.type, np.zeros(0)) for f in dataclasses.fields(Trajectory)}
+    given = {k: v for k, v in arrays.items() if k in fields}
+    return Trajectory(**fields | given | {"success": True, "status": "Solve_Succeeded"})
+
+
+def test_a_pair_no_round_frees_ends_the_search_unfreed_naming_it(scene):
+    """Issue 48: a carried box 5 cm in the table that no solve moves: the first check adds
+    its pairs, the second promotes them, the third adds nothing and returns the pair as
+    unfreed (the solve is then recorded as ``Collision_Pairs_Unfreed``)."""
+    model, _ = scene
+    sunk = np.tile(BOX_ON_TABLE, (NODES, 1))
+    sunk[1:, 2] -= 0.05
+    scene_ = dataclasses.replace(_box_by_the_table(scene), object_q=sunk[:, None, :])
+    stuck = _Stuck()
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    _, rounds, missing, unfreed = search(stuck, _solved(_trajectory(sunk)), model, scene_, cfg)
+    assert [r.pairs_added > 0 for r in rounds] == [True, True, False]
+    assert len(stuck.pairs) == 2 and stuck.pairs[0] < stuck.pairs[1]
+    assert missing == []  # every pair it needs is there
+    assert unfreed and all(c.distance < -cfg.unfreed_m for c in unfreed)
+    assert {frozenset(c.label.split(" | ")) for c in unfreed} == {
+        frozenset({"box/body", "table/top"})
+    }
 
 
 def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):

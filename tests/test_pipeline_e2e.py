@@ -185,16 +185,3 @@ def test_a_pole_the_starting_set_misses_is_found_and_the_arm_freed(workdir, tmp_
     pole_rounds = [r for r in metrics["collision_rounds"] if "pole" in r["deepest_pair"]]
     assert pole_rounds and all(r["pairs_added"] > 0 for r in pole_rounds)
     assert _pole_depth(scene, tmp_path / "solve") == 0.0
-
-
-def test_a_pair_the_rounds_cannot_free_fails_the_solve_naming_it(workdir, tmp_path, monkeypatch):
-    """Issue 48: a pole through the box where it rests on the table (the box's pose is given
-    until the pick): no round can free it, and the solve is recorded as failed with it."""
-    scene = _pole_in_tiny(workdir, tmp_path / "scene", 0.4, 0.0, 0.95)
-    metrics = _solve_beside(workdir, scene, tmp_path / "solve", monkeypatch, rounds=2)
-    assert not metrics["success"], metrics["status"]
-    named = [set(label.split(" | ")) for label in metrics["pairs_unfreed"]]
-    assert {"box/body", "pole/body"} in named
-    last = metrics["collision_rounds"][-1]
-    assert set(last["deepest_pair"].split(" | ")) == {"box/body", "pole/body"}
-    assert last["deepest_m"] < -0.02
