@@ -580,3 +580,41 @@ def test_a_bad_grid_override_names_its_key_before_hydra_runs(override, message):
 
 def test_good_grid_overrides_pass_the_check():
     check_overrides("tiny", "fig6", ["cell.box_mass=2.5,7.5", "hydra.launcher.n_jobs=1", "x=1"])
+
+
+def test_a_grids_records_are_exported_and_restored_where_none_is(tmp_path):
+    """``python -m locoman.grid.archive``: records out to a committed folder and back, a
+    newer record never overwritten, another scenario's refused."""
+    from locoman.grid.archive import RECORDS, export_records, main, restore_records
+
+    data, kept = tmp_path / "data", tmp_path / "kept"
+    ran = [_record(run, yaw=yaw) for yaw in (0.0, 0.6) for run in ("none", "all")]
+    for record in ran:
+        cell = CellCfg("tiny", "fig6", record["run"], 5.0, record["initial_yaw"])
+        (cell_dir(data, cell)).mkdir(parents=True)
+        (cell_dir(data, cell) / "cell.json").write_text(json.dumps(record))
+    (data / "tiny" / "grid" / "fig6" / "killed_m5_yaw+0").mkdir()  # no record: left out
+    files = export_records(data, "tiny", "fig6", kept)
+    assert [f.name for f in files] == sorted(
+        f"{r['run']}_m5_yaw{r['initial_yaw']:+g}.json" for r in ran
+    )
+    assert json.loads(files[0].read_text()) in ran
+
+    fresh = tmp_path / "fresh"
+    newer = {**ran[0], "iterations": 99}
+    newer_dir = cell_dir(fresh, CellCfg("tiny", "fig6", ran[0]["run"], 5.0, 0.0))
+    newer_dir.mkdir(parents=True)
+    (newer_dir / "cell.json").write_text(json.dumps(newer))
+    restored, kept_own = restore_records(fresh, "tiny", kept)
+    assert len(restored) == 3 and kept_own == ["fig6/none_m5_yaw+0"]
+    assert read_record(newer_dir)["iterations"] == 99
+    for record in ran[1:]:
+        cell = CellCfg("tiny", "fig6", record["run"], 5.0, record["initial_yaw"])
+        assert read_record(cell_dir(fresh, cell)) == record
+
+    with pytest.raises(ArtifactError, match="a record of 'tiny', not 's1_basket'"):
+        restore_records(fresh, "s1_basket", kept)
+    with pytest.raises(ArtifactError, match="holds no cell record"):
+        export_records(data, "tiny", "vb", kept)
+    (kept / RECORDS / "fig6" / "bad.json").write_text(json.dumps({"run": "all"}))
+    assert main(["--data-dir", str(fresh), "restore", "tiny", str(kept)]) == 2
