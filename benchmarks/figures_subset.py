@@ -13,7 +13,9 @@ summary.md, metrics.json, timing.json). The cells are those of the full grid, un
 ``data/<scenario>/grid/``: the full grid reuses them, and this reuses the full grid's.
 ``--runs`` keeps only these of each figure's runs (``none all``: Fig. 6's NoKeyframe and
 AllKeyframe, which its claims compare); ``--draw-only`` draws the cells' records as they are
-(run by hand or on a cluster) and solves nothing.
+(run by hand or on a cluster) and solves nothing. The drawn cells' records go to
+``out_dir/records/`` (:mod:`locoman.grid.archive`: restored in another checkout, the cells
+whose key matches are not solved again).
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ import yaml
 
 from locoman.config import load_params
 from locoman.errors import LocomanError
+from locoman.grid.archive import export_records
+from locoman.grid.launch import cells
 from locoman.grid.report import REPORTS, figures_scenario
 
 
@@ -53,9 +57,10 @@ def main(argv: list[str]) -> int:
         # not part of a cell's key, so the cells are the full grid's.
         params = Path(tmp) / "params.yaml"
         params.write_text(yaml.safe_dump(raw, sort_keys=False))
+        subset = load_params(params)
         try:
-            figures_scenario(
-                load_params(params),
+            metrics = figures_scenario(
+                subset,
                 args.scenario,
                 args.out_dir,
                 params_file=params,
@@ -63,6 +68,9 @@ def main(argv: list[str]) -> int:
                 runs=args.runs,
                 solve=not args.draw_only,
             )
+            for figure in metrics.keys() - {"claims"}:
+                drawn = {c.name for c in cells(subset, args.scenario, figure, args.runs)}
+                export_records(Path("data"), args.scenario, figure, args.out_dir, drawn)
         except LocomanError as exc:
             print(f"locoman: {type(exc).__name__}: {exc}", file=sys.stderr)
             return 2

@@ -599,6 +599,8 @@ def test_a_grids_records_are_exported_and_restored_where_none_is(tmp_path):
         f"{r['run']}_m5_yaw{r['initial_yaw']:+g}.json" for r in ran
     )
     assert json.loads(files[0].read_text()) in ran
+    alone = export_records(data, "tiny", "fig6", tmp_path / "one", only={"all_m5_yaw+0.6"})
+    assert [f.name for f in alone] == ["all_m5_yaw+0.6.json"]
 
     fresh = tmp_path / "fresh"
     newer = {**ran[0], "iterations": 99}

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -45,9 +46,12 @@ def _cell(record: dict[str, Any]) -> CellCfg:
         raise ArtifactError(f"not a cell record (no {exc}): {sorted(record)[:8]}") from exc
 
 
-def export_records(data_dir: Path, scenario: str, figure: str, dest: Path) -> list[Path]:
-    """Copy each record of ``figure``'s cells under ``data_dir`` to
-    ``dest/records/<figure>/<cell>.json``; return the files written, sorted.
+def export_records(
+    data_dir: Path, scenario: str, figure: str, dest: Path, only: Collection[str] | None = None
+) -> list[Path]:
+    """Copy each record of ``figure``'s cells under ``data_dir`` (``only``: of the cells of
+    these names, :attr:`CellCfg.name`) to ``dest/records/<figure>/<cell>.json``; return the
+    files written, sorted.
 
     Raises:
         ArtifactError: The figure has no cell with a record.
@@ -59,6 +63,8 @@ def export_records(data_dir: Path, scenario: str, figure: str, dest: Path) -> li
         if record is None:
             continue
         cell = _cell(record)
+        if only is not None and cell.name not in only:
+            continue
         out = Path(dest) / RECORDS / figure / f"{cell.name}.json"
         write_json_atomic(out, record)
         written.append(out)
