@@ -382,6 +382,35 @@ def test_a_carried_box_dipped_over_a_tables_rim_pays_the_object_environment_pena
     assert penalty(0.745) < 1e-3
 
 
+def test_a_carried_box_pierced_by_the_trolleys_post_pays_the_object_object_penalty():
+    """S2's box, carried past the trolley, went 88 mm through its post in the first solve,
+    where no pair held it. ``object_object``: the handle frame's vertical edge (the post)
+    inside the carried box pays (12); 30 cm further, nothing; a box at rest, and a box
+    with the kind off, have no such pairs."""
+    trolley = ObjectModel.from_spec("trolley", _trolley_spec())
+    frame_c, frame_h = trolley.parts[1]
+    post_y = frame_c[1] + frame_h[1]  # the frame's +y vertical edge: the left post
+    cfg = CollisionCfg(
+        self_pairs=[], **(dict.fromkeys(KINDS, "off") | {"object_object": "penalty"})
+    )
+    carried = NodeMode((True, True), (0, 0), (ObjectMode(True, None), ObjectMode(True, Surface())))
+    tr = _transcription([carried], (BOX, trolley), cfg)
+    assert {p.kind for p in tr.pairs} == {"object_object"}
+    assert {(p.obj, p.box_obj) for p in tr.pairs} == {(0, 1), (1, 0)}
+
+    def penalty(x: float) -> float:
+        box_q = [x, post_y, frame_c[2] - 0.1, 0.0, 0.0, 0.0]  # the post through its middle
+        z = {"q": g1.standing_q35(), "object0_q": box_q, "object1_q": np.zeros(6)}
+        return _penalty(tr, _point(tr, [z]))
+
+    assert penalty(frame_c[0]) > 10.0
+    assert penalty(frame_c[0] + 0.3 + BOX.half_extents[0]) < 1e-3
+    at_rest = NodeMode((True, True), (None, None), (ObjectMode(True, Surface()),) * 2)
+    assert not _transcription([at_rest], (BOX, trolley), cfg).pairs
+    off = dataclasses.replace(cfg, object_object="off")
+    assert not _transcription([carried], (BOX, trolley), off).pairs
+
+
 def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     """S1's right forearm went 5 cm into the held basket's floor: the TO saw a solid box,
     whose holding arm it does not check (the palm is on its face). A basket is its floor

@@ -112,6 +112,10 @@ class CollisionCfg:
             and every fixed object's bounding box, and between the obstacles' vertical and
             top edges and the object (as (11) the bottom corners of a level box are
             dependent, and IPOPT stalled: keep it a penalty).
+        object_object: Between the corners of a carried object and every other object's
+            boxes, and between those boxes' vertical and top edges and the carried object
+            (S2's box, carried past the trolley, went 88 mm through its post in the first
+            solve, and no round of found pairs freed it from there).
         margin_m: Clearance added to every pair [m].
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.
@@ -133,6 +137,7 @@ class CollisionCfg:
     hands_environment: str = "penalty"
     feet_environment: str = "off"
     object_environment: str = "penalty"
+    object_object: str = "penalty"
     found: str = "penalty"
     found_hard: str = "constraint"
     rounds: int = 3
@@ -200,6 +205,7 @@ KINDS = (
     "hands_environment",
     "feet_environment",
     "object_environment",
+    "object_object",
     "found",
     "found_hard",
 )

@@ -326,8 +326,9 @@ def node_collision_pairs(
 ) -> Iterator[CollisionPair]:
     """The collision pairs at node k, each of a kind that is not ``off``: the trunk's body
     points, the legs' and the feet's spheres and the arms not touching it against each
-    object's boxes; each carried object's corners against the obstacles and the obstacles'
-    edges against it; the palms, forearms and feet against the obstacles."""
+    object's boxes; each carried object's corners against the obstacles and the other
+    objects' boxes, and their edges against it; the palms, forearms and feet against the
+    obstacles."""
     body = body_point_spheres()
     legs = [s for link in LEG_LINKS for s in link_sphere_list(link)]
     palms = [palm_spheres(frames, i) for i in range(2)]
@@ -365,10 +366,15 @@ def node_collision_pairs(
             # Off an object on the floor (S1's box, S2's wheels), but for a foot on its top.
             feet_j = [s for i in range(2) if mode.feet_on[i] != j for s in feet[i]]
             yield from sphere_box_pairs(k, "feet_object", feet_j, under, j, name)
-    if cfg.object_environment != "off":
-        for j, obj in enumerate(objects):
-            if mode.carried(j):
-                yield from object_environment_pairs(k, j, obj, obstacles)
+    for j, obj in enumerate(objects):
+        if not mode.carried(j):
+            continue
+        if cfg.object_environment != "off":
+            yield from object_environment_pairs(k, j, obj, obstacles)
+        if cfg.object_object != "off":
+            for i, other in enumerate(objects):
+                if i != j:
+                    yield from object_object_pairs(k, j, obj, i, other)
     arms = [s for i in range(2) for s in palms[i] + forearms[i]]
     both_feet = feet[0] + feet[1]
     for kind, spheres in (("hands_environment", arms), ("feet_environment", both_feet)):
@@ -439,6 +445,39 @@ def object_environment_pairs(
                 obj=j,
                 numbers={"point": point, "centre": centre, "half": half},
                 label=f"{obstacle.name}/edge{n} | {obj.name}",
+            )
+
+
+def object_object_pairs(
+    k: int, j: int, obj: ObjectModel, i: int, other: ObjectModel
+) -> Iterator[CollisionPair]:
+    """Carried object j against object i, both moving: j's corners against each of i's
+    boxes, and each box's vertical and top edges (points spaced by j's smallest half size)
+    against j's box, as :func:`object_environment_pairs` keeps j off a fixed box (S2's box
+    swung past the trolley went 88 mm through its post before any found pair held it)."""
+    centre, half = _object_box(obj)
+    spacing = _smallest_half_size(obj)
+    for b, (centre_b, half_b) in enumerate(object_boxes(other)):
+        for n, c in enumerate(box_corners(half)):
+            yield CollisionPair(
+                k,
+                "object_object",
+                "object_point_object_box",
+                obj=j,
+                box_obj=i,
+                numbers={"point": c, "centre": centre_b, "half": half_b},
+                label=f"{obj.name}/point{n} | {other.name}/{b}",
+            )
+        part = Obstacle(f"{other.name}/{b}", centre_b, 0.0, half_b)
+        for n, point in enumerate(edge_points(part, edge_point_counts(half_b, spacing))):
+            yield CollisionPair(
+                k,
+                "object_object",
+                "object_point_object_box",
+                obj=i,
+                box_obj=j,
+                numbers={"point": point, "centre": centre, "half": half},
+                label=f"{other.name}/{b}/edge{n} | {obj.name}",
             )
 
 
