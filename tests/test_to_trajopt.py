@@ -265,7 +265,7 @@ def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):
         "feet_environment",
         "hands_environment",
         "object_environment",
-        "object_object",  # one object
+        "object_object",  # off by default
         "feet_object",
         "found",  # pairs found along a solution, none before
         "found_hard",
