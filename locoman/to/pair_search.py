@@ -36,6 +36,7 @@ from locoman.to.transcription import (
     CollisionPair,
     object_boxes,
     object_environment_pairs,
+    object_point_pairs,
     obstacle_pairs,
     sphere_box_pairs,
 )
@@ -116,31 +117,12 @@ def _object_side(
     spacing = min(scene.spacing_m, float(min(own_half)))
     edges = edge_points(rim, edge_point_counts(half, spacing))
     names = scene.names
-    out = [
-        CollisionPair(
-            k,
-            KIND,
-            "object_point_object_box",
-            obj=j,
-            box_obj=i,
-            numbers={"point": c, "centre": centre, "half": half},
-            label=f"{names[j]}/{a}/point{n} | {names[i]}/{b}",
-        )
-        for n, c in enumerate(points)
+    own = (f"{names[j]}/{a}/point", f" | {names[i]}/{b}")
+    theirs = (f"{names[i]}/{b}/edge", f" | {names[j]}/{a}")
+    return [
+        *object_point_pairs(k, KIND, j, points, i, (centre, half), own),
+        *object_point_pairs(k, KIND, i, edges, j, (own_centre, own_half), theirs),
     ]
-    out += [
-        CollisionPair(
-            k,
-            KIND,
-            "object_point_object_box",
-            obj=i,
-            box_obj=j,
-            numbers={"point": e, "centre": own_centre, "half": own_half},
-            label=f"{names[i]}/{b}/edge{n} | {names[j]}/{a}",
-        )
-        for n, e in enumerate(edges)
-    ]
-    return out
 
 
 def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:

@@ -457,28 +457,40 @@ def object_object_pairs(
     swung past the trolley went 88 mm through its post before any found pair held it)."""
     centre, half = _object_box(obj)
     spacing = _smallest_half_size(obj)
+    kind = "object_object"
     for b, (centre_b, half_b) in enumerate(object_boxes(other)):
-        for n, c in enumerate(box_corners(half)):
-            yield CollisionPair(
-                k,
-                "object_object",
-                "object_point_object_box",
-                obj=j,
-                box_obj=i,
-                numbers={"point": c, "centre": centre_b, "half": half_b},
-                label=f"{obj.name}/point{n} | {other.name}/{b}",
-            )
+        corners = box_corners(half)
+        label = (f"{obj.name}/point", f" | {other.name}/{b}")
+        yield from object_point_pairs(k, kind, j, corners, i, (centre_b, half_b), label)
         part = Obstacle(f"{other.name}/{b}", centre_b, 0.0, half_b)
-        for n, point in enumerate(edge_points(part, edge_point_counts(half_b, spacing))):
-            yield CollisionPair(
-                k,
-                "object_object",
-                "object_point_object_box",
-                obj=i,
-                box_obj=j,
-                numbers={"point": point, "centre": centre, "half": half},
-                label=f"{other.name}/{b}/edge{n} | {obj.name}",
-            )
+        edges = edge_points(part, edge_point_counts(half_b, spacing))
+        label = (f"{other.name}/{b}/edge", f" | {obj.name}")
+        yield from object_point_pairs(k, kind, i, edges, j, (centre, half), label)
+
+
+def object_point_pairs(
+    k: int,
+    kind: str,
+    obj: int,
+    points: np.ndarray,
+    box_obj: int,
+    box: tuple[np.ndarray, np.ndarray],
+    label: tuple[str, str],
+) -> Iterator[CollisionPair]:
+    """Each of ``points`` (n, 3) fixed to object ``obj`` (in its frame [m]) against a box
+    (centre [m], half sizes [m], in its frame) of object ``box_obj``, both moving; the n-th
+    pair's label is ``label[0]``, n, ``label[1]``."""
+    centre, half = box
+    for n, point in enumerate(points):
+        yield CollisionPair(
+            k,
+            kind,
+            "object_point_object_box",
+            obj=obj,
+            box_obj=box_obj,
+            numbers={"point": point, "centre": centre, "half": half},
+            label=f"{label[0]}{n}{label[1]}",
+        )
 
 
 def self_collision_pairs(k: int, cfg: CollisionCfg) -> Iterator[CollisionPair]:
