@@ -6,10 +6,12 @@ Usage: python benchmarks/hessian_profile.py [--scenarios tiny s1_basket s2_troll
 Per scenario (its first problem at the defaults: the TO's broad collision set, before any
 round of found pairs) and per Hessian flavour, at the initial guess with seeded multipliers:
 the time of one call of each oracle IPOPT calls (``hess_lag``, ``jac_g``, ``grad_f``), and of
-the compiled terms' Hessians alone, grouped by term kind, called over the same calls as the
-assembly makes them. The difference is the assembly's: gathering the terms' inputs,
-scattering their nonzeros, and the chain rule through the virtual variables (sphere centres,
-kinematics; :class:`locoman.to.assembly.BlockNLP`). Also the sizes that drive it: the terms'
+the compiled terms' Hessians alone, grouped by term kind, called over every call (the
+oracles skip a collision penalty's far calls: since the numeric oracles of
+:mod:`locoman.to.oracles` the terms' column can exceed the oracle's). The difference is the
+assembly's: gathering the terms' inputs, scattering their nonzeros, and the chain rule
+through the virtual variables (sphere centres, kinematics;
+:class:`locoman.to.assembly.BlockNLP`). Also the sizes that drive it: the terms'
 Hessian nonzeros, the collision-pair calls, and the Hessian's nonzeros over x. Each time is
 the minimum of ``--repeats`` calls less the same minimum for a function that only takes the
 inputs (Python's conversion of them), so it holds on a busy machine.

@@ -13,7 +13,7 @@ scenario: which terms are called where, on which variables and with which number
 The NLP's Jacobian, gradient and Hessian of the Lagrangian are the terms' own, scattered into
 IPOPT's sparse structure by constant index maps and summed where they land on the same entry
 (the chain rule of a gather is a scatter). So a new scenario, contact schedule or collision
-pair builds a new assembly (a second or so of graph building), and compiles nothing.
+pair builds a new assembly (index bookkeeping, under a second), and compiles nothing.
 
 The cost is sum l + ||r||^2. Per term the Hessian comes in two flavours:
 
@@ -37,9 +37,9 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-import scipy.sparse as sps
 
 from locoman.to.compile import Recipe, SolverBuildError, load_or_compile
+from locoman.to.oracles import OracleCallback, Oracles, unavailable_jacobian
 
 HESSIANS = ("gauss_newton", "exact")
 
@@ -55,11 +55,15 @@ class Term:
             False keeps them Gauss-Newton in both flavours.
         lifts: Its rows are c - f(y) for x = (y, c): it defines the variables c (a lifted
             kinematic quantity), which :func:`evaluate` at c = 0 gives as -g.
+        one_sided: Its cost is residuals that vanish with their derivatives (a one-sided
+            penalty (12)): a call whose cost is negligible is skipped in the derivatives
+            (:data:`locoman.to.oracles.NEGLIGIBLE_COST`).
     """
 
     function: ca.Function
     exact_residuals: bool = True
     lifts: bool = False
+    one_sided: bool = False
 
     @property
     def name(self) -> str:
@@ -352,6 +356,11 @@ class BlockNLP:
     out, as it leaves out every constraint's curvature). So a collision pair's term is a
     small function of two sphere centres, and the NLP has no variable for them.
 
+    IPOPT's oracles are evaluated numerically (:class:`locoman.to.oracles.Oracles`): the
+    compiled terms on NumPy buffers, the sums and the chain rule in SciPy, the far calls of
+    the collision penalties skipped. Building one is index bookkeeping (well under a second
+    on S2): no graph is built and nothing is compiled.
+
     Args:
         n_x: Decision variables.
         blocks: The term calls.
@@ -379,142 +388,45 @@ class BlockNLP:
         self.lbg, self.ubg = rows.bounds()
         self.key = structure_key(n_x + n_y, blocks)
         self.n_p = sum(b.p.size for b in blocks)
-        X, P = ca.MX.sym("x", n_x), ca.MX.sym("p", self.n_p)
-        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.n_g)
-        offsets = np.cumsum([0] + [b.p.size for b in blocks])
-        params = {
-            id(b): P[int(a) : int(a) + b.p.size] for b, a in zip(blocks, offsets, strict=False)
-        }
-        defined = [b for b in blocks if b.defines and b.calls]
-        Z, prolong, definitions = self._virtual(X, defined, derivatives, params)
-        n_z = n_x + n_y
-        g_parts, g_rows, cost = [], [], 0
-        g_jac_parts, jac_parts, jac_rows, jac_cols = [], [], [], []
-        cost_grad, grad_parts, grad_cols = 0, [], []
-        hess_parts, hess_rows, hess_cols = [], [], []
-        for block in blocks:
-            if block.calls == 0 or block.defines:
-                continue
-            d = derivatives[block.term.name]
-            term, n = block.term, block.calls
-            xb = ca.reshape(Z[block.x.ravel().tolist()], term.nx, n)
-            pb = ca.reshape(params[id(block)], term.np, n)
-            g, l = d.val.map(n)(xb, pb)
-            cost += ca.sum2(l)
-            l_grad, gr = d.grad.map(n)(xb, pb)
-            cost_grad += ca.sum2(l_grad)
-            grad_parts.append(ca.vec(gr))
-            grad_cols.append(block.x.ravel())
-            if term.ng:
-                g_jac, jnz = d.jac.map(n)(xb, pb)
-                g_parts.append(ca.vec(g))
-                g_jac_parts.append(ca.vec(g_jac))
-                g_rows.append(block.rows.ravel())
-                jr, jc = d.jac_pattern
-                jac_parts.append(ca.vec(jnz))
-                jac_rows.append(block.rows[:, jr].ravel())
-                jac_cols.append(block.x[:, jc].ravel())
-            hr, hc = d.hess_pattern[hessian]
-            if len(hr):
-                lam = ca.reshape(lam_g[block.rows.ravel().tolist()], term.ng, n)
-                hnz = d.hess[hessian].map(n)(xb, pb, lam, ca.repmat(lam_f, 1, n))
-                hess_parts.append(ca.vec(hnz))
-                a, b = block.x[:, hr].ravel(), block.x[:, hc].ravel()
-                hess_rows.append(np.minimum(a, b))
-                hess_cols.append(np.maximum(a, b))
-        summed = _summed(np.concatenate(g_rows or [[]]).astype(int), self.n_g)
-        G = summed @ ca.vertcat(*g_parts) if g_parts else ca.MX(0, 1)
-        G_jac = summed @ ca.vertcat(*g_jac_parts) if g_parts else ca.MX(0, 1)
-        jac = _scattered(jac_parts, jac_rows, jac_cols, (self.n_g, n_z))
-        grad = _summed(np.concatenate(grad_cols), n_z) @ ca.vertcat(*grad_parts)
-        hess = _scattered(hess_parts, hess_rows, hess_cols, (n_z, n_z))
-        if n_y:
-            # The chain rule through y = F(x); with mu = dL/dy, the exact Hessian's
-            # sum_i mu_i nabla^2 F_i from each defining term's own Hessian with lambda = -mu
-            # (its rows are y - F(x)).
-            mu = lam_f * grad[n_x:] + ca.mtimes(jac[:, n_x:].T, lam_g)
-            jac = jac[:, :n_x] + ca.mtimes(jac[:, n_x:], prolong)
-            grad = grad[:n_x] + ca.mtimes(prolong.T, grad[n_x:])
-            full = ca.triu2symm(hess)
-            cross = ca.mtimes(full[:n_x, n_x:], prolong)
-            curvature_y = ca.mtimes(prolong.T, ca.mtimes(full[n_x:, n_x:], prolong))
-            hess = hess[:n_x, :n_x] + ca.triu(cross + cross.T) + ca.triu(curvature_y)
-            if hessian == "exact":
-                hess += self._curvature(definitions, derivatives, params, mu, lam_f, n_x)
-        # Dense: with a variable in no term (alpha without a homotopy kind) the gradient
-        # had a structural zero, and IPOPT's gradient-based scaling of the objective came
-        # out at its floor, 1e-8 instead of 0.3 on tiny: the solve diverged.
-        grad = ca.densify(grad)
+        evaluate = Oracles(n_x, blocks, self.n_g, derivatives, hessian, n_y)
+        self.evaluate = evaluate
+        x_in = ("x", ca.Sparsity.dense(n_x, 1))
+        p_in = ("p", ca.Sparsity.dense(self.n_p, 1))
+        scalar = ca.Sparsity.dense(1, 1)
+        g_out = ("g", ca.Sparsity.dense(self.n_g, 1))
+        # f and g as one function of the problem's graph; IPOPT takes the derivatives from
+        # the oracles below.
+        fg_out = [("f", scalar), g_out]
+        jacobian = unavailable_jacobian([x_in, p_in], fg_out)
+        fg = OracleCallback("fg", [x_in, p_in], fg_out, evaluate.fg, jacobian)
         self.oracles = {
-            "jac_g": ca.Function("jac_g", [X, P], [G_jac, jac], ["x", "p"], ["g", "jac_g_x"]),
-            "grad_f": ca.Function(
-                "grad_f", [X, P], [cost_grad, grad], ["x", "p"], ["f", "grad_f_x"]
+            "jac_g": OracleCallback(
+                "jac_g",
+                [x_in, p_in],
+                [g_out, ("jac_g_x", evaluate.J_x.sparsity())],
+                evaluate.jac_g,
             ),
-            "hess_lag": ca.Function(
+            "grad_f": OracleCallback(
+                "grad_f",
+                [x_in, p_in],
+                [("f", scalar), ("grad_f_x", ca.Sparsity.dense(n_x, 1))],
+                evaluate.grad_f,
+            ),
+            "hess_lag": OracleCallback(
                 "hess_lag",
-                [X, P, lam_f, lam_g],
-                [hess],
-                ["x", "p", "lam_f", "lam_g"],
-                ["triu_hess_gamma_x_x"],
+                [x_in, p_in, ("lam_f", scalar), ("lam_g", ca.Sparsity.dense(self.n_g, 1))],
+                [("triu_hess_gamma_x_x", evaluate.H_x.sparsity())],
+                lambda x, p, lam_f, lam_g: [evaluate.hess_lag(x, p, float(lam_f[0]), lam_g)],
             ),
         }
-        self._problem = {"x": X, "p": P, "f": cost, "g": G}
+        X, P = ca.MX.sym("x", n_x), ca.MX.sym("p", self.n_p)
+        f, g = fg(X, P)
+        self._callbacks = (fg, jacobian)  # CasADi holds them by reference only
+        self._problem = {"x": X, "p": P, "f": f, "g": g}
         self._options = dict(ipopt)
         self.solver = self.ipopt(ipopt)
         self._warm_solver: ca.Function | None = None
         self.build_time_s = time.perf_counter() - tic
-
-    def _virtual(self, X: ca.MX, defined: list[Block], derivatives, params) -> tuple:
-        """z = (x, y) with each virtual y = F(x) from its defining block, dy/dx, and per
-        defining block what its curvature term needs (inputs, y indices, mapped args)."""
-        n_x, n_y = self.n_x, self.n_y
-        if not n_y:
-            return X, None, []
-        y_parts, y_idx, jy_parts, jy_rows, jy_cols, definitions = [], [], [], [], [], []
-        for block in defined:
-            d, term, n = derivatives[block.term.name], block.term, block.calls
-            n_in = term.nx - term.ng
-            inputs, lifted = block.x[:, :n_in], block.x[:, n_in:] - n_x
-            if inputs.max(initial=-1) >= n_x or lifted.min(initial=0) < 0:
-                raise SolverBuildError(f"{term.name}: a virtual variable of real ones only")
-            # The rows are y - F(inputs): with y = 0 they are -F.
-            xb = ca.vertcat(
-                ca.reshape(X[inputs.ravel().tolist()], n_in, n), ca.MX.zeros(term.ng, n)
-            )
-            pb = ca.reshape(params[id(block)], term.np, n)
-            g, _ = d.val.map(n)(xb, pb)
-            y_parts.append(-ca.vec(g))
-            y_idx.append(lifted.ravel())
-            _, jnz = d.jac.map(n)(xb, pb)
-            jr, jc = d.jac_pattern
-            keep = np.flatnonzero(jc < n_in)
-            jy_parts.append(-ca.vec(jnz[keep.tolist(), :]))
-            jy_rows.append(lifted[:, jr[keep]].ravel())
-            jy_cols.append(inputs[:, jc[keep]].ravel())
-            definitions.append((block, xb, pb, inputs, lifted))
-        target = np.concatenate(y_idx)
-        if len(np.unique(target)) != len(target) or len(target) != n_y:
-            raise SolverBuildError("every virtual variable must be defined exactly once")
-        Y = _summed(target, n_y) @ ca.vertcat(*y_parts)
-        return ca.vertcat(X, Y), _scattered(jy_parts, jy_rows, jy_cols, (n_y, n_x)), definitions
-
-    def _curvature(self, definitions, derivatives, params, mu, lam_f, n_x: int) -> ca.MX:
-        """sum_i mu_i nabla^2 F_i(x), upper triangle, from the defining terms' Hessians."""
-        parts, rows, cols = [], [], []
-        for block, xb, pb, inputs, lifted in definitions:
-            d, term, n = derivatives[block.term.name], block.term, block.calls
-            hr, hc = d.hess_pattern["exact"]
-            n_in = term.nx - term.ng
-            keep = np.flatnonzero((hr < n_in) & (hc < n_in))
-            if not len(keep):
-                continue
-            lam = -ca.reshape(mu[lifted.ravel().tolist()], term.ng, n)
-            hnz = d.hess["exact"].map(n)(xb, pb, lam, ca.repmat(lam_f, 1, n))
-            parts.append(ca.vec(hnz[keep.tolist(), :]))
-            a, b = inputs[:, hr[keep]].ravel(), inputs[:, hc[keep]].ravel()
-            rows.append(np.minimum(a, b))
-            cols.append(np.maximum(a, b))
-        return _scattered(parts, rows, cols, (n_x, n_x))
 
     def ipopt(self, options: dict) -> ca.Function:
         """An IPOPT instance on this NLP's oracles with ``options``."""
@@ -578,30 +490,6 @@ class BlockNLP:
             lam_x=np.asarray(out["lam_x"]).ravel(),
             function_time_s=functions,
         )
-
-
-def _summed(target: np.ndarray, size: int) -> ca.DM:
-    """Constant 0/1 matrix S (size, len(target)) with S[target[i], i] = 1: S @ values sums
-    the values that land on the same entry."""
-    source = np.arange(len(target))
-    mat = sps.csc_matrix((np.ones(len(target)), (target, source)), shape=(size, len(source)))
-    mat.sum_duplicates()
-    # Lists: SWIG converts a NumPy array element by element, 20 times slower.
-    pattern = ca.Sparsity(size, len(source), mat.indptr.tolist(), mat.indices.tolist())
-    return ca.DM(pattern, mat.data.tolist())
-
-
-def _scattered(
-    parts: list[ca.MX], rows: list[np.ndarray], cols: list[np.ndarray], shape: tuple[int, int]
-) -> ca.MX:
-    """The sparse matrix whose nonzeros are ``parts`` at (rows, cols), summed where they
-    land on the same entry."""
-    if not parts:
-        return ca.MX(*shape)
-    r, c = np.concatenate(rows).astype(int), np.concatenate(cols).astype(int)
-    pattern, mapping = ca.Sparsity.triplet(shape[0], shape[1], r.tolist(), c.tolist(), True)
-    values = _summed(np.asarray(mapping, dtype=int), pattern.nnz()) @ ca.vertcat(*parts)
-    return ca.MX(pattern, values)
 
 
 @contextlib.contextmanager

@@ -77,9 +77,11 @@ def term_kind(
     body: Callable[[Symbols, Symbols], Rows],
     exact_residuals: bool = True,
     lifts: bool = False,
+    one_sided: bool = False,
 ) -> TermKind:
-    """A term kind from its slots and a ``body(x, p) -> Rows`` on their symbols; ``lifts``:
-    see :attr:`locoman.to.assembly.Term.lifts` (its last slot is what it lifts)."""
+    """A term kind from its slots and a ``body(x, p) -> Rows`` on their symbols; ``lifts``,
+    ``one_sided``: see :class:`locoman.to.assembly.Term` (a lifting kind's last slot is what
+    it lifts)."""
     xs, ps = Symbols("x", x), Symbols("p", p)
     out = body(xs, ps)
     eq = ca.vertcat(*out.equalities) if out.equalities else ca.SX(0, 1)
@@ -89,7 +91,7 @@ def term_kind(
     fn = ca.Function(name, [xs.vector, ps.vector], [ca.vertcat(eq, ineq), cost, residuals])
     lower = np.zeros(eq.numel() + ineq.numel())
     upper = np.r_[np.zeros(eq.numel()), np.full(ineq.numel(), np.inf)]
-    return TermKind(Term(fn, exact_residuals, lifts), dict(x), dict(p), lower, upper)
+    return TermKind(Term(fn, exact_residuals, lifts, one_sided), dict(x), dict(p), lower, upper)
 
 
 class Calls:

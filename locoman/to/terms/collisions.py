@@ -146,7 +146,9 @@ def collision_kind(geometry: str, treatment: str, between: bool = False) -> Term
     # links, active at many nodes at once: their curvature made IPOPT regularise).
     exact = geometry != "sphere_sphere"
     name = f"{geometry}_{treatment}" + ("_between" if between else "")
-    return term_kind(name, x_slots, p_slots, body, exact_residuals=exact)
+    return term_kind(
+        name, x_slots, p_slots, body, exact_residuals=exact, one_sided=treatment == "penalty"
+    )
 
 
 @functools.cache

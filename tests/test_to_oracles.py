@@ -1,0 +1,101 @@
+"""The numeric oracles (:mod:`locoman.to.oracles`): a one-sided penalty's far calls are
+skipped without changing the derivatives beyond rounding, a subset of calls evaluates as
+the same calls of the whole map, and the problem function's own Jacobian is refused."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from locoman.to.assembly import (
+    Block,
+    BlockNLP,
+    RowSpace,
+    Term,
+    load_derivatives,
+    parameter_vector,
+)
+from locoman.to.collision import penetration_residual
+from locoman.to.oracles import Mapped, Oracles
+
+SOFTNESS = 0.005  # [m]
+
+
+def _penalty(one_sided: bool) -> Term:
+    """A point (x) kept 0.1 m from a fixed point (p): (12) on a sphere pair."""
+    x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 3)
+    clearance = ca.norm_2(x - p) - 0.1
+    residual = 10.0 * penetration_residual(clearance, SOFTNESS)
+    fn = ca.Function("near", [x, p], [ca.SX(0, 1), 0, residual])
+    return Term(fn, one_sided=one_sided)
+
+
+def _track() -> Term:
+    """A cost that keeps every point near the origin, so the problem has curvature
+    everywhere."""
+    x = ca.SX.sym("x", 3)
+    return Term(ca.Function("track", [x, ca.SX(0, 1)], [ca.SX(0, 1), 0, 0.1 * x]))
+
+
+def _oracles(one_sided: bool, calls: int = 200) -> tuple[Oracles, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(5)
+    n_points = 40
+    points = rng.integers(0, n_points, size=calls)
+    x = (3 * points[:, None] + np.arange(3)).astype(int)
+    obstacles = rng.uniform(-1.0, 1.0, size=(calls, 3))
+    blocks = [
+        Block(_penalty(one_sided), x, obstacles, np.zeros((calls, 0), int)),
+        Block(
+            _track(),
+            np.arange(3 * n_points).reshape(n_points, 3),
+            np.zeros((n_points, 0)),
+            np.zeros((n_points, 0), int),
+        ),
+    ]
+    derivatives = load_derivatives([b.term for b in blocks], None)
+    oracles = Oracles(3 * n_points, blocks, 0, derivatives, "exact", 0)
+    return oracles, rng.uniform(-1.0, 1.0, size=3 * n_points), parameter_vector(blocks)
+
+
+def test_far_penalty_calls_are_skipped_and_change_nothing_beyond_rounding():
+    skipping, x, p = _oracles(one_sided=True)
+    every, _, _ = _oracles(one_sided=False)
+    f, grad = skipping.grad_f(x, p)
+    f_all, grad_all = every.grad_f(x, p)
+    assert f == f_all  # the cost sums every call
+    np.testing.assert_allclose(grad, grad_all, rtol=0, atol=1e-14)
+    hess = skipping.hess_lag(x, p, 1.0, np.zeros(0))
+    np.testing.assert_allclose(hess, every.hess_lag(x, p, 1.0, np.zeros(0)), rtol=0, atol=1e-12)
+    active = skipping._point.active[0]
+    assert 0 < len(active) < 200  # some near, most far: the test sees both
+    assert every._point.active[0] is None
+
+
+def test_a_subset_of_calls_is_the_same_calls_of_the_whole_map():
+    term = _penalty(one_sided=True)
+    derivatives = load_derivatives([term], None)["near"]
+    rng = np.random.default_rng(2)
+    x, p = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    whole = Mapped(derivatives.grad, 50)
+    cost, grad = whole(x, p)
+    chosen = np.array([3, 17, 18, 41, 49])
+    part_cost, part_grad = whole.some(len(chosen), x[chosen], p[chosen])  # padded to 16
+    np.testing.assert_array_equal(part_cost, cost[chosen])
+    np.testing.assert_array_equal(part_grad, grad[chosen])
+    assert np.all(cost >= 0.0)
+
+
+def test_the_problem_function_has_no_jacobian_of_its_own():
+    term = _track()
+    derivatives = load_derivatives([term], None)
+    rows = RowSpace()
+    block = Block(term, np.array([[0, 1, 2]]), np.zeros((1, 0)), np.zeros((1, 0), int))
+    nlp = BlockNLP(3, [block], rows, derivatives, "gauss_newton", {"print_level": 0, "sb": "yes"})
+    _, jacobian = nlp._callbacks
+    # The TO's own refusal (SolverBuildError), raised through CasADi.
+    with pytest.raises(RuntimeError, match="come from its oracles"):
+        jacobian(*[np.zeros(sp.nnz()) for sp in map(jacobian.sparsity_in, range(4))])
+    solution = nlp.solve(np.ones(3), -np.inf * np.ones(3), np.inf * np.ones(3), np.zeros(0))
+    assert solution.success
+    np.testing.assert_allclose(solution.x, 0.0, atol=1e-8)
