@@ -208,6 +208,9 @@ class Oracles:
             else:
                 calls.append((block, params, d))
         self._definitions = definitions
+        target = _joined([e.lifted.ravel() for e in definitions])
+        if len(np.unique(target)) != len(target) or len(target) != n_y:
+            raise SolverBuildError("every virtual variable must be defined exactly once")
         # Patterns of the terms' triplets: J_z (n_g, n_z), H_z upper (n_z, n_z), P (n_y, n_x).
         jac_r, jac_c, hess_r, hess_c = [], [], [], []
         for block, _, d in calls:
@@ -275,7 +278,6 @@ class Oracles:
         lifted = [e.jac_at[0].ravel() for e in self._definitions]
         inputs = [e.jac_at[1].ravel() for e in self._definitions]
         self.P = Pattern(_joined(lifted), _joined(inputs), (n_y, n_x))
-        self._p_at = list(_split(self.P.where, [len(r) for r in lifted]))
         ones = self.P.matrix(np.ones(self.P.nnz))
         J_z = self.J_z.matrix(np.ones(self.J_z.nnz))
         self.J_x = structural(J_z[:, :n_x] + J_z[:, n_x:] @ ones if n_y else J_z)
@@ -310,19 +312,14 @@ class Oracles:
         x, p = point.x, point.p
         z = np.zeros(self.n_x + self.n_y)
         z[: self.n_x] = x
-        p_values = np.zeros(self.P.nnz)
-        for e, at in zip(self._definitions, self._p_at, strict=True):
+        for e in self._definitions:
             n = e.block.calls
             xb = np.hstack([z[e.inputs], np.zeros((n, e.lifted.shape[1]))])
             pb = p[e.params].reshape(n, -1)
             g, _ = e.val(xb, pb)
             z[self.n_x + e.lifted.ravel()] = -g.ravel()
-            _, jnz = e.jac(xb, pb)
-            p_values += np.bincount(at, -jnz[:, e.jac_keep].ravel(), minlength=self.P.nnz)
             point.definitions.append((xb, pb))
         point.z = z
-        point.P = self.P.matrix(p_values)
-        point.P.eliminate_zeros()
         g_parts, g_rows, f = [], [], 0.0
         for c in self._calls:
             n = c.block.calls
@@ -341,6 +338,21 @@ class Oracles:
         point.g = np.bincount(_joined(g_rows), _joined(g_parts, float), minlength=self.n_g)
         self._point = point
         return point
+
+    def _prolongation(self, point: _Point) -> sps.csc_matrix:
+        """P = dy/dx at the point: the derivatives' business only, so f and g at a trial
+        point of IPOPT's line search do without it."""
+        if point.P is None:
+            values = []
+            for e, (xb, pb) in zip(self._definitions, point.definitions, strict=True):
+                _, jnz = e.jac(xb, pb)
+                values.append(-jnz[:, e.jac_keep].ravel())
+            # The rows of a definition are its own: every nonzero of P comes from one call.
+            data = np.zeros(self.P.nnz)
+            data[self.P.where] = _joined(values, float)
+            point.P = self.P.matrix(data)
+            point.P.eliminate_zeros()
+        return point.P
 
     def _gradient_z(self, point: _Point) -> np.ndarray:
         if point.gradient is None:
@@ -382,14 +394,14 @@ class Oracles:
         point = self._at(x, p)
         grad = self._gradient_z(point)
         if self.n_y:
-            return point.f, grad[: self.n_x] + point.P.T @ grad[self.n_x :]
+            return point.f, grad[: self.n_x] + self._prolongation(point).T @ grad[self.n_x :]
         return point.f, grad
 
     def jac_g(self, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         point = self._at(x, p)
         J = self._jacobian_z(point)
         if self.n_y:
-            J = J[:, : self.n_x] + J[:, self.n_x :] @ point.P
+            J = J[:, : self.n_x] + J[:, self.n_x :] @ self._prolongation(point)
         return point.g, self.J_x.values(J)
 
     def hess_lag(self, x: np.ndarray, p: np.ndarray, lam_f: float, lam_g: np.ndarray) -> np.ndarray:
@@ -410,7 +422,7 @@ class Oracles:
         data = np.bincount(_joined(index), _joined(values, float), minlength=self.H_z.nnz)
         H_z = self.H_z.matrix(data)
         H_z.eliminate_zeros()
-        H_x = self._chain_rule(H_z, point.P)
+        H_x = self._chain_rule(H_z, self._prolongation(point))
         if self.hessian == "exact" and self.n_y:
             H_x = H_x + self._curvature(point, lam_f, lam_g)
         return self.H_x.values(H_x)
