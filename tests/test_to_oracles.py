@@ -4,6 +4,8 @@ the same calls of the whole map, and the problem function's own Jacobian is refu
 
 from __future__ import annotations
 
+import dataclasses
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ from locoman.to.assembly import (
     parameter_vector,
 )
 from locoman.to.collision import penetration_residual
+from locoman.to.compile import SolverBuildError
 from locoman.to.oracles import Mapped, Oracles
 
 SOFTNESS = 0.005  # [m]
@@ -99,3 +102,20 @@ def test_the_problem_function_has_no_jacobian_of_its_own():
     solution = nlp.solve(np.ones(3), -np.inf * np.ones(3), np.inf * np.ones(3), np.zeros(0))
     assert solution.success
     np.testing.assert_allclose(solution.x, 0.0, atol=1e-8)
+
+
+def test_a_virtual_variable_defined_twice_or_from_another_is_refused():
+    u, c = ca.SX.sym("u", 1), ca.SX.sym("c", 1)
+    lift = Term(ca.Function("lift", [ca.vertcat(u, c), ca.SX(0, 1)], [c - u**2, 0, ca.SX(0, 1)]))
+    lift = dataclasses.replace(lift, lifts=True)
+    derivatives = load_derivatives([lift], None)
+
+    def oracles(x: list[list[int]]) -> Oracles:
+        block = Block(lift, np.array(x), np.zeros((2, 0)), np.zeros((2, 0), int), defines=True)
+        return Oracles(2, [block], 0, derivatives, "gauss_newton", 2)
+
+    oracles([[0, 2], [1, 3]])  # y0 = x0^2, y1 = x1^2
+    with pytest.raises(SolverBuildError, match="exactly once"):
+        oracles([[0, 2], [1, 2]])
+    with pytest.raises(SolverBuildError, match="real ones only"):
+        oracles([[0, 2], [2, 3]])
