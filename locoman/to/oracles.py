@@ -170,20 +170,17 @@ class _Definition:
 
 
 class _Point:
-    """What the oracles share at one (x, p): z, P, each block's inputs, values and the
-    calls that count."""
+    """What the oracles share at one (x, p): f, g, P, each block's inputs and the calls
+    that count."""
 
     def __init__(self, x: np.ndarray, p: np.ndarray) -> None:
         self.x, self.p = x.copy(), p.copy()
-        self.z = np.zeros(0)
         self.P: sps.csc_matrix | None = None
         self.f = 0.0
         self.g = np.zeros(0)
         self.definitions: list[tuple[np.ndarray, np.ndarray]] = []
         self.inputs: list[tuple[np.ndarray, np.ndarray]] = []
         self.active: list[np.ndarray | None] = []
-        self.costs: list[np.ndarray] = []
-        self.rows: list[np.ndarray] = []
         self.gradient: np.ndarray | None = None
         self.jacobian: sps.csc_matrix | None = None
 
@@ -319,7 +316,6 @@ class Oracles:
             g, _ = e.val(xb, pb)
             z[self.n_x + e.lifted.ravel()] = -g.ravel()
             point.definitions.append((xb, pb))
-        point.z = z
         g_parts, g_rows, f = [], [], 0.0
         for c in self._calls:
             n = c.block.calls
@@ -328,7 +324,6 @@ class Oracles:
             cost = cost.ravel()
             f += float(np.sum(cost))
             point.inputs.append((xb, pb))
-            point.costs.append(cost)
             one_sided = c.block.term.one_sided
             point.active.append(np.flatnonzero(cost >= NEGLIGIBLE_COST) if one_sided else None)
             if c.block.term.ng:
