@@ -24,6 +24,7 @@ from locoman.to.layout import ObjectModel
 from locoman.to.optimizer import Trajectory
 from locoman.to.pair_search import (
     FLOOR_BOX,
+    PROMOTED,
     Scene,
     found_pairs,
     pairs_for,
@@ -264,6 +265,59 @@ def test_a_pair_no_round_frees_ends_the_search_unfreed_naming_it(scene):
     assert {frozenset(c.label.split(" | ")) for c in unfreed} == {
         frozenset({"box/body", "table/top"})
     }
+
+
+class _FailsWith(_Stuck):
+    """Moves nothing, like :class:`_Stuck`, and fails each solve that ``fails`` says of its
+    pairs, as IPOPT ends in a point of local infeasibility."""
+
+    def __init__(self, fails) -> None:
+        super().__init__()
+        self.fails = fails
+        self.kinds: list[set[str]] = []
+
+    def solve(self, pairs, warm_start, hessian):
+        self.kinds.append({p.kind for p in pairs})
+        moved = super().solve(pairs, warm_start, hessian)
+        if not self.fails(len(self.pairs), pairs):
+            return moved
+        return dataclasses.replace(moved, success=False, status="Infeasible_Problem_Detected")
+
+
+def _sunk_box(scene):
+    model, _ = scene
+    sunk = np.tile(BOX_ON_TABLE, (NODES, 1))
+    sunk[1:, 2] -= 0.05
+    scene_ = dataclasses.replace(_box_by_the_table(scene), object_q=sunk[:, None, :])
+    return model, scene_, _solved(_trajectory(sunk))
+
+
+def test_a_round_that_fails_with_promoted_pairs_is_solved_again_without_them(scene):
+    """Issue 48 (S1's two infeasible grid cells): the round that promotes the box's pairs to
+    (11) fails; it is solved again without the promotions, which succeeds, and no later
+    round promotes: the search ends with the pair unfreed, not from a failed point."""
+    model, scene_, first = _sunk_box(scene)
+    solver = _FailsWith(lambda _, pairs: any(p.kind == PROMOTED for p in pairs))
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True, False]
+    assert solver.pairs[0] == solver.pairs[2] < solver.pairs[1]
+    assert [r.demoted > 0 for r in rounds] == [False, True, False]
+    assert [r.status for r in rounds[:2]] == ["Solve_Succeeded"] * 2
+    assert traj.success and missing == [] and unfreed
+
+
+def test_a_round_that_fails_ends_the_search_with_its_failure(scene):
+    """A round whose solve fails without promotions to drop is the search's result: no
+    check of a failed point, no more rounds."""
+    model, scene_, first = _sunk_box(scene)
+    solver = _FailsWith(lambda calls, _: calls == 1)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    assert len(solver.pairs) == 1 and len(rounds) == 1
+    assert not traj.success and traj.status == "Infeasible_Problem_Detected"
+    assert rounds[0].status == "Infeasible_Problem_Detected" and rounds[0].demoted == 0
+    assert missing == [] and unfreed == []
 
 
 def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):

@@ -259,6 +259,8 @@ class Round:
         iterations, solve_time_s, status: Of the warm-started solve with them (0, 0, "":
             none, after the last check).
         deepest_pair: The geoms of the closest pair (``a | b``; "" with none).
+        demoted: Pairs promoted to (11) in this round whose solve failed, left out of the
+            second attempt (:func:`search`).
     """
 
     close_pairs: int
@@ -268,6 +270,7 @@ class Round:
     solve_time_s: float = 0.0
     status: str = ""
     deepest_pair: str = ""
+    demoted: int = 0
 
 
 def search(
@@ -283,6 +286,13 @@ def search(
     check (empty: the solution needs none it lacks) and those still deeper than
     ``cfg.unfreed_m``, modelled or not (the rounds could not free them); with ``found``
     off, no rounds or a failed ``traj``: ``traj``.
+
+    A round whose solve fails with pairs promoted to (11) is solved again without the
+    promotions (their pairs keep the penalty (12) they joined with), and no later round
+    promotes: (11) on a pair that keeps coming back can leave no feasible point near the
+    previous optimum (S1: an elbow held out of the shelf while the hand holds the basket;
+    IPOPT then ends in a point of local infeasibility). A round that fails all the same
+    ends the search with that failure: a failed solve's point is no motion to check.
     """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
@@ -290,6 +300,7 @@ def search(
     if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
         return traj, rounds, [], []  # a failed solve is no solution to check
     names = scene.names
+    promote = cfg.found_hard
     after = 0
     while True:
         arrays = trajectory_arrays(traj, names)
@@ -298,13 +309,12 @@ def search(
         )
         close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
         deepest = min(close, key=lambda c: c.distance, default=None)
-        new = round_pairs(close, pairs, scene, cfg)
+        new = round_pairs(close, pairs, scene, dataclasses.replace(cfg, found_hard=promote))
         if not new or after == cfg.rounds:
             rounds.append(_round(close, deepest, []))
             unmodelled = [c for c in close if found_pairs([c], pairs, scene)]
             unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
             return totals.of(traj), rounds, unmodelled, unfreed
-        pairs += new
         after += 1
         print(
             f"[solve] round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
@@ -314,9 +324,28 @@ def search(
         tic = time.perf_counter()
         # From an optimum, the exact Hessian converges in a few iterations where the
         # Gauss-Newton one, cycling near the penalties' optimum, used all 150 of its own.
-        traj = optimizer.solve(pairs=pairs, warm_start=traj, hessian="exact")
-        rounds.append(_round(close, deepest, new, traj, time.perf_counter() - tic))
-        totals.add(traj)
+        solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
+        iterations, demoted = solved.iterations, [p for p in new if p.kind == PROMOTED]
+        if not solved.success and demoted:
+            print(
+                f"[solve] round {after} ended {solved.status} with {len(demoted)} pairs "
+                "promoted to (11); solving it again without them, and promoting none from here",
+                flush=True,
+            )
+            totals.add(solved)
+            promote = "off"
+            new = [p for p in new if p.kind != PROMOTED]
+            solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
+            iterations += solved.iterations
+        else:
+            demoted = []
+        pairs += new
+        seconds = time.perf_counter() - tic
+        rounds.append(_round(close, deepest, new, solved, seconds, iterations, len(demoted)))
+        totals.add(solved)
+        traj = solved
+        if not traj.success:
+            return totals.of(traj), rounds, [], []
 
 
 def _mm(pair: ClosePair | None) -> str:
@@ -329,12 +358,20 @@ def _round(
     new: list[CollisionPair],
     traj: Trajectory | None = None,
     seconds: float = 0.0,
+    iterations: int = 0,
+    demoted: int = 0,
 ) -> Round:
-    """The record of one check (and of the solve it led to, if ``traj``)."""
+    """The record of one check (and of the solve it led to, if ``traj``: ``iterations``
+    and ``seconds`` of its one or two attempts)."""
     solved = (
         {}
         if traj is None
-        else {"iterations": traj.iterations, "solve_time_s": seconds, "status": traj.status}
+        else {
+            "iterations": iterations,
+            "solve_time_s": seconds,
+            "status": traj.status,
+            "demoted": demoted,
+        }
     )
     return Round(
         len(close),
