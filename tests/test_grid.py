@@ -480,6 +480,43 @@ def test_the_figures_and_the_summary_draw_from_records():
     assert len(settings.splitlines()) == 2 + len(KEYFRAME_RUNS)
 
 
+def _by_class(depth: float, node: int = 3) -> dict:
+    """A cell's ``penetration_by_class``: ``depth`` [m] in robot_object, nothing elsewhere."""
+    empty = {"max_m": 0.0, "avg_m": 0.0, "deepest_pair": None, "nodes_penetrating": 0}
+    pair = {"geoms": ["box/body", "left_knee_link#12"], "node": node, "depth_m": depth}
+    hit = {"max_m": depth, "avg_m": depth / 10, "deepest_pair": pair, "nodes_penetrating": 2}
+    return {kind: hit if kind == "robot_object" else empty for kind in CLASSES}
+
+
+def test_a_grids_metrics_give_each_runs_penetration_by_class_over_its_converged_cells():
+    """Issue 52: every grid's ``metrics.json`` has ``penetration_by_class``, per run: the
+    deepest pair over the cells names its cell; failed solves and unevaluated cells are
+    left out."""
+    from locoman.grid.report import penetration_by_class
+
+    records = [
+        _record("none", yaw=0.0) | {"penetration_by_class": _by_class(0.01)},
+        _record("none", yaw=0.6) | {"penetration_by_class": _by_class(0.03, node=7)},
+        _record("none", "not_converged", yaw=1.2) | {"penetration_by_class": _by_class(0.5)},
+        _record("all", "error", yaw=0.0) | {"penetration_by_class": None},
+    ]
+    by_run = penetration_by_class(records)
+    assert by_run["all"] == {}
+    robot_object = by_run["none"]["robot_object"]
+    assert robot_object["cells"] == 2 and robot_object["max_m"] == pytest.approx(0.03)
+    assert robot_object["avg_m"] == pytest.approx(0.002)
+    assert robot_object["nodes_penetrating"] == 4
+    assert robot_object["deepest_pair"] == {
+        "geoms": ["box/body", "left_knee_link#12"],
+        "node": 7,
+        "depth_m": 0.03,
+        "box_mass": 5.0,
+        "initial_yaw": 0.6,
+    }
+    assert by_run["none"]["self"]["deepest_pair"] is None
+    assert set(by_run["none"]) == set(CLASSES)
+
+
 def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
     params, tmp_path, monkeypatch
 ):
@@ -521,6 +558,7 @@ def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, mon
     assert launched == ["fig6"]
     assert (out / "fig6.png").is_file() and not (out / "fig5.png").exists()
     assert set(metrics) == {"fig6", "claims"} and metrics["fig6"]["cells"] == 2
+    assert set(metrics["fig6"]["penetration_by_class"]) == {r.name for r in KEYFRAME_RUNS}
     summary = (out / "summary.md").read_text()
     assert summary.startswith("# tiny: paper A's Fig. 6\n") and "## Fig. 5" not in summary
     assert len((out / "summary.csv").read_text().splitlines()) == 1 + len(records)

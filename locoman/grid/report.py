@@ -7,7 +7,8 @@ Outputs under ``data/<scenario>/figures/``::
     fig5/<run>.csv            Fig. 5's curves (node, time_s, penetration_m), for dvc plots
     summary.csv               one row per run of both figures (figures.SUMMARY_COLUMNS)
     summary.md                the same as two tables, and where the paper's claims stand
-    metrics.json              per-run numbers of Fig. 5, per-setting rates of Fig. 6, claims
+    metrics.json              per-run numbers of Fig. 5, per-setting rates of Fig. 6, claims,
+                              and each grid's penetration by class per run
 """
 
 from __future__ import annotations
@@ -97,6 +98,40 @@ def _curve_csv(curve: np.ndarray) -> str:
     return "\n".join(lines) + "\n"
 
 
+def penetration_by_class(records: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Each run's penetration by class (:data:`locoman.sim.penetration.CLASSES`) over its
+    converged cells whose evaluation ran, for a grid's ``metrics.json``.
+
+    Per run and class: ``cells``, how many cells count; ``max_m``, the deepest node over
+    them [m]; ``avg_m``, the mean over them of each cell's average per node [m];
+    ``nodes_penetrating``, summed over them; ``deepest_pair``, the deepest geom pair over
+    them with its cell's ``box_mass`` [kg] and ``initial_yaw`` [rad]. A run with no such
+    cell maps to ``{}``. Failed solves are left out: their trajectories are not solutions,
+    and the checks they fail are in their records.
+    """
+    counted: dict[str, list[dict[str, Any]]] = {r["run"]: [] for r in records}
+    for record in records:
+        if record["status"] == "converged" and record.get("penetration_by_class"):
+            counted[record["run"]].append(record)
+    result: dict[str, dict[str, Any]] = {}
+    for run, cells_of_run in counted.items():
+        result[run] = {}
+        for kind in CLASSES if cells_of_run else ():
+            per_cell = [(r, r["penetration_by_class"][kind]) for r in cells_of_run]
+            pairs = [(c["deepest_pair"], r) for r, c in per_cell if c["deepest_pair"]]
+            pair, cell = max(pairs, key=lambda pr: pr[0]["depth_m"], default=(None, None))
+            result[run][kind] = {
+                "cells": len(per_cell),
+                "max_m": max(c["max_m"] for _, c in per_cell),
+                "avg_m": float(np.mean([c["avg_m"] for _, c in per_cell])),
+                "nodes_penetrating": sum(c["nodes_penetrating"] for _, c in per_cell),
+                "deepest_pair": None
+                if pair is None
+                else pair | {"box_mass": cell["box_mass"], "initial_yaw": cell["initial_yaw"]},
+            }
+    return result
+
+
 @dataclasses.dataclass(frozen=True)
 class FigureReport:
     """What one figure adds to the scenario's outputs (its PNG is already written)."""
@@ -183,6 +218,7 @@ def _fig6_report(name: str, figure: str, records: list[dict[str, Any]]) -> Figur
             "converged_rate": {name: n / n_cells for name, n in converged.items()},
             "errors": sum(r["status"] == "error" for r in records),
             "penetration_all_vs_none": fig6_comparison(records).as_dict(),
+            "penetration_by_class": penetration_by_class(records),
         },
     )
 
@@ -198,7 +234,8 @@ def report_vb(
         heading="V-B over the grid",
         table=markdown_table(records),
         claims=vb_claims(records),
-        metrics=vb_comparison(records).as_dict(),
+        metrics=vb_comparison(records).as_dict()
+        | {"penetration_by_class": penetration_by_class(records)},
     )
 
 
