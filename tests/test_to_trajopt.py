@@ -284,3 +284,30 @@ def test_a_schedule_too_large_is_refused_before_anything_is_built():
     )
     with pytest.raises(ConfigError, match="nodes, more than the TO's"):
         build_schedule(far, ScheduleCfg(step_length_m=0.05, swing_nodes=50))
+
+
+def test_slack_max_bounds_every_free_slack_and_keeps_the_inactive_ones_at_zero():
+    """``contact.slack_max_m``: |s| of (2a), (4) and the hands' contacts within the bound
+    where the contact is on; where it is off the slack stays fixed at 0; None: free."""
+    from locoman.to.bounds import bounds
+    from locoman.to.layout import NodeLayout
+    from locoman.to.schedule import Schedule
+
+    cfg = ScheduleCfg()
+    schedule = Schedule.from_phases(subtask_phases("pick", 0, 0, True, cfg))
+    inputs = _inputs([Keyframe("pick", g1.standing_q35(), 0, BOX_ON_TABLE)])
+    modes = node_modes(inputs, schedule)
+    layout = NodeLayout.of(1)
+    var = layout.variables
+    slacks = [var["foot_slack"], var["hand_slack"], layout.object_variables(0, "support_slack")]
+    rows = np.concatenate([np.arange(s.start, s.stop) for s in slacks])
+    free_lo, free_hi = bounds(layout, inputs, schedule, modes, SolverCfg())
+    lo, hi = bounds(layout, inputs, schedule, modes, SolverCfg(), slack_max_m=0.004)
+    fixed = free_lo[rows] == free_hi[rows]
+    assert fixed.any() and (~fixed).any()
+    assert np.all(np.isinf(free_hi[rows][~fixed]))
+    assert np.all(hi[rows][~fixed] == 0.004) and np.all(lo[rows][~fixed] == -0.004)
+    assert np.all(lo[rows][fixed] == 0.0) and np.all(hi[rows][fixed] == 0.0)
+    others = np.setdiff1d(np.arange(layout.width), rows)
+    np.testing.assert_array_equal(lo[others], free_lo[others])
+    np.testing.assert_array_equal(hi[others], free_hi[others])

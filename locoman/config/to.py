@@ -29,12 +29,17 @@ class ContactCfg:
         stiffness: k_z of (2a) [1/s].
         prehensile: Hands grasp the object: (3) is dropped for them (paper A, Sec. IV-A.2).
         palm_half_extents_m: Half sizes of a palm's patch for the CoP of (3b) [m].
+        slack_max_m: The most each slack s of (2a), (4) and the hands' contacts may take,
+            |s| <= slack_max_m [m]: the slack cost alone let S2's converged NoKeyframe
+            solutions sink the trolley 128 mm into the floor and a hand 33 mm into its
+            handle. None: unbounded, the cost alone.
     """
 
     floor_friction: float = 0.8
     stiffness: float = 50.0
     prehensile: bool = False
     palm_half_extents_m: list[float] = field(default_factory=lambda: [0.04, 0.03])
+    slack_max_m: float | None = None
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -42,6 +47,8 @@ class ContactCfg:
             errors.append(("stiffness", "friction and stiffness must be > 0"))
         if len(self.palm_half_extents_m) != 2 or min(self.palm_half_extents_m) <= 0.0:
             errors.append(("palm_half_extents_m", "needs two half sizes > 0 m"))
+        if self.slack_max_m is not None and not self.slack_max_m > 0.0:
+            errors.append(("slack_max_m", "must be > 0 m, or null for no bound"))
         return errors
 
 

@@ -67,12 +67,14 @@ def bounds(
     cfg: SolverCfg,
     homotopy: bool = False,
     end_lift_m: float = 0.0,
+    slack_max_m: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Variable bounds (width, N): joint position and velocity limits, the initial state,
     robot and objects at rest at the end, an object still carried at the end at least
     ``end_lift_m`` [m] above where it rested at its grasp keyframe, inactive contacts'
-    wrenches and slacks at zero, the objects not yet simulated at rest where the scene has
-    them; (13)'s alpha in [0, 1] with a ``homotopy`` kind, else 0."""
+    wrenches and slacks at zero, the other slacks within ``slack_max_m`` [m] (None: free),
+    the objects not yet simulated at rest where the scene has them; (13)'s alpha in [0, 1]
+    with a ``homotopy`` kind, else 0."""
     var, ovar = layout.variables, layout.object_variables
     model = g1.g1_pinocchio_model()
     n = schedule.nodes
@@ -106,6 +108,11 @@ def bounds(
         if modes[-1].carried(j):
             grasped = inputs.keyframes[schedule.subtask_of(n - 1)].object_poses[j]
             lo[ovar(j, "q").start + 2, -1] = grasped[2] + end_lift_m
+    if slack_max_m is not None:
+        slacks = [var["foot_slack"], var["hand_slack"]]
+        slacks += [ovar(j, "support_slack") for j in range(layout.n_objects)]
+        for s in slacks:
+            lo[s], hi[s] = -slack_max_m, slack_max_m
     for k, mode in enumerate(modes):
         last = k == n - 1
         for i in range(2):

@@ -223,7 +223,14 @@ class TrajectoryOptimizer:
         homotopy = self.cfg.collision.homotopy
         layout, schedule, modes = tr.layout, self.schedule, self.modes
         lo, hi = bounds(
-            layout, inputs, schedule, modes, self.cfg.solver, homotopy, self.cfg.schedule.end_lift_m
+            layout,
+            inputs,
+            schedule,
+            modes,
+            self.cfg.solver,
+            homotopy,
+            self.cfg.schedule.end_lift_m,
+            self.cfg.contact.slack_max_m,
         )
         X0 = initial_guess(
             layout, inputs, schedule, modes, self.cfg.solver, self.robot.mass, homotopy
