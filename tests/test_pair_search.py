@@ -271,9 +271,10 @@ class _FailsWith(_Stuck):
     """Moves nothing, like :class:`_Stuck`, and fails each solve that ``fails`` says of its
     pairs, as IPOPT ends in a point of local infeasibility."""
 
-    def __init__(self, fails) -> None:
+    def __init__(self, fails, status: str = "Infeasible_Problem_Detected") -> None:
         super().__init__()
         self.fails = fails
+        self.status = status
         self.kinds: list[set[str]] = []
 
     def solve(self, pairs, warm_start, hessian):
@@ -281,7 +282,11 @@ class _FailsWith(_Stuck):
         moved = super().solve(pairs, warm_start, hessian)
         if not self.fails(len(self.pairs), pairs):
             return moved
-        return dataclasses.replace(moved, success=False, status="Infeasible_Problem_Detected")
+        return dataclasses.replace(moved, success=False, status=self.status)
+
+
+def _with_promotions(_calls: int, pairs) -> bool:
+    return any(p.kind == PROMOTED for p in pairs)
 
 
 def _sunk_box(scene):
@@ -297,7 +302,7 @@ def test_a_round_that_fails_with_promoted_pairs_is_solved_again_without_them(sce
     (11) fails; it is solved again without the promotions, which succeeds, and no later
     round promotes: the search ends with the pair unfreed, not from a failed point."""
     model, scene_, first = _sunk_box(scene)
-    solver = _FailsWith(lambda _, pairs: any(p.kind == PROMOTED for p in pairs))
+    solver = _FailsWith(_with_promotions)
     cfg = dataclasses.replace(CollisionCfg(), rounds=4)
     traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
     assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True, False]
@@ -305,6 +310,19 @@ def test_a_round_that_fails_with_promoted_pairs_is_solved_again_without_them(sce
     assert [r.demoted > 0 for r in rounds] == [False, True, False]
     assert [r.status for r in rounds[:2]] == ["Solve_Succeeded"] * 2
     assert traj.success and missing == [] and unfreed
+
+
+def test_a_round_out_of_iterations_with_promoted_pairs_is_not_solved_again(scene):
+    """Only infeasibility drops the promotions: a round that ran out of iterations (S2's
+    NoKeyframe: 1000 more without them) ends the search with its status."""
+    model, scene_, first = _sunk_box(scene)
+    solver = _FailsWith(_with_promotions, "Maximum_Iterations_Exceeded")
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    traj, rounds, _, _ = search(solver, first, model, scene_, cfg)
+    assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True]
+    assert [r.status for r in rounds] == ["Solve_Succeeded", "Maximum_Iterations_Exceeded"]
+    assert [r.demoted for r in rounds] == [0, 0]
+    assert traj.status == "Maximum_Iterations_Exceeded"
 
 
 def test_a_round_that_fails_ends_the_search_with_its_failure(scene):

@@ -259,7 +259,7 @@ class Round:
         iterations, solve_time_s, status: Of the warm-started solve with them (0, 0, "":
             none, after the last check).
         deepest_pair: The geoms of the closest pair (``a | b``; "" with none).
-        demoted: Pairs promoted to (11) in this round whose solve failed, left out of the
+        demoted: Pairs promoted to (11) in this round whose solve ended infeasible, left out of the
             second attempt (:func:`search`).
     """
 
@@ -271,6 +271,11 @@ class Round:
     status: str = ""
     deepest_pair: str = ""
     demoted: int = 0
+
+
+# IPOPT's statuses for "no feasible point here": a round ending so with promotions is
+# solved again without them (:func:`search`).
+INFEASIBLE = ("Infeasible_Problem_Detected", "Restoration_Failed")
 
 
 def search(
@@ -287,12 +292,13 @@ def search(
     ``cfg.unfreed_m``, modelled or not (the rounds could not free them); with ``found``
     off, no rounds or a failed ``traj``: ``traj``.
 
-    A round whose solve fails with pairs promoted to (11) is solved again without the
-    promotions (their pairs keep the penalty (12) they joined with), and no later round
-    promotes: (11) on a pair that keeps coming back can leave no feasible point near the
-    previous optimum (S1: an elbow held out of the shelf while the hand holds the basket;
-    IPOPT then ends in a point of local infeasibility). A round that fails all the same
-    ends the search with that failure: a failed solve's point is no motion to check.
+    A round whose solve ends infeasible (:data:`INFEASIBLE`) with pairs promoted to (11) is
+    solved again without the promotions (their pairs keep the penalty (12) they joined
+    with), and no later round promotes: (11) on a pair that keeps coming back can leave no
+    feasible point near the previous optimum (S1: an elbow held out of the shelf while the
+    hand holds the basket). Another failure is not retried: a solve that ran out of
+    iterations would likely run out again (S2: 2 x 1000 iterations, 45 min). A round that
+    fails ends the search with that failure: a failed solve's point is no motion to check.
     """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
@@ -325,10 +331,11 @@ def search(
         # From an optimum, the exact Hessian converges in a few iterations where the
         # Gauss-Newton one, cycling near the penalties' optimum, used all 150 of its own.
         solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
-        iterations, demoted = solved.iterations, [p for p in new if p.kind == PROMOTED]
-        if not solved.success and demoted:
+        iterations, promoted = solved.iterations, [p for p in new if p.kind == PROMOTED]
+        demoted = len(promoted) if solved.status in INFEASIBLE else 0
+        if demoted:
             print(
-                f"[solve] round {after} ended {solved.status} with {len(demoted)} pairs "
+                f"[solve] round {after} ended {solved.status} with {demoted} pairs "
                 "promoted to (11); solving it again without them, and promoting none from here",
                 flush=True,
             )
@@ -337,11 +344,9 @@ def search(
             new = [p for p in new if p.kind != PROMOTED]
             solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
             iterations += solved.iterations
-        else:
-            demoted = []
         pairs += new
         seconds = time.perf_counter() - tic
-        rounds.append(_round(close, deepest, new, solved, seconds, iterations, len(demoted)))
+        rounds.append(_round(close, deepest, new, solved, seconds, iterations, demoted))
         totals.add(solved)
         traj = solved
         if not traj.success:
