@@ -30,16 +30,16 @@ class ContactCfg:
         prehensile: Hands grasp the object: (3) is dropped for them (paper A, Sec. IV-A.2).
         palm_half_extents_m: Half sizes of a palm's patch for the CoP of (3b) [m].
         slack_max_m: The most each slack s of (2a), (4) and the hands' contacts may take,
-            |s| <= slack_max_m [m]: the slack cost alone let S2's converged NoKeyframe
-            solutions sink the trolley 128 mm into the floor and a hand 33 mm into its
-            handle. None: unbounded, the cost alone.
+            |s| <= slack_max_m [m]: with the slack cost (Table I) alone a converged solve
+            could sink a support or a hand by centimetres (``docs/deviations.md``). None:
+            unbounded, the cost alone.
     """
 
     floor_friction: float = 0.8
     stiffness: float = 50.0
     prehensile: bool = False
     palm_half_extents_m: list[float] = field(default_factory=lambda: [0.04, 0.03])
-    slack_max_m: float | None = None
+    slack_max_m: float | None = 0.01
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
