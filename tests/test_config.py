@@ -243,3 +243,14 @@ def test_a_negative_unfreed_depth_is_refused(raw):
     bad["solve"]["collision"]["unfreed_m"] = -0.01
     with pytest.raises(ConfigError, match=r"solve\.collision\.unfreed_m: must be >= 0 m"):
         validate(bad)
+
+
+@pytest.mark.parametrize("value", [0.0, -0.01])
+def test_a_slack_bound_that_is_not_positive_is_refused(raw, value):
+    """issue 48: |s| <= contact.slack_max_m [m]; 0 would leave no slack, null none."""
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["solve"]["contact"]["slack_max_m"] = value
+    with pytest.raises(ConfigError, match=r"solve\.contact\.slack_max_m: must be > 0 m"):
+        validate(bad)
+    bad["solve"]["contact"]["slack_max_m"] = None
+    validate(bad)
