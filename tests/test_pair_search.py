@@ -38,13 +38,20 @@ NODES = 4
 BOX_ON_TABLE = np.array([0.4, 0.0, 0.72, 0.0, 0.0, 0.0])
 
 
-def _trajectory(box_q: np.ndarray, support: str = "none", q: np.ndarray | None = None) -> dict:
-    """The G1 standing still at the origin, the box at ``box_q`` (N, 6), hands off it."""
+def _trajectory(
+    box_q: np.ndarray,
+    support: str = "none",
+    q: np.ndarray | None = None,
+    feet_contact: np.ndarray | None = None,
+) -> dict:
+    """The G1 standing still at the origin (both feet on the floor unless ``feet_contact``
+    says otherwise), the box at ``box_q`` (N, 6), hands off it."""
     q = np.tile(g1.standing_q35(), (NODES, 1)) if q is None else q
     return {
         "q": q,
         "object_q": box_q[:, None, :],
         "object_names": np.array(["box"]),
+        "feet_contact": np.ones((NODES, 2), bool) if feet_contact is None else feet_contact,
         "foot_object": np.full((NODES, 2), -1),
         "hand_object": np.full((NODES, 2), -1),
         "support_kind": np.full((NODES, 1), support),
@@ -71,6 +78,28 @@ def test_a_carried_box_through_the_table_is_found_a_resting_one_is_not(scene):
     # Resting on the table (its support), the same pose is the schedule's contact.
     resting = close_pairs(model, _trajectory(sunk, "surface"), 0.005, 0)
     assert not [c for c in resting if "box" in (c.a.name, c.b.name)]
+
+
+def test_a_foot_on_the_floor_is_allowed_only_while_it_stands(scene):
+    """The robot sunk 10 mm into the floor: the soles of standing feet are the schedule's
+    contact; the left foot in swing at node 2 is a robot-floor pair there, and only there
+    (a pose between node 2 and a standing node is allowed what that node allows)."""
+    model, _ = scene
+    q = np.tile(g1.standing_q35(), (NODES, 1))
+    q[:, 2] -= 0.01
+    swing = np.ones((NODES, 2), bool)
+    swing[2, 0] = False
+    box = np.tile(BOX_ON_TABLE, (NODES, 1))
+    standing = close_pairs(model, _trajectory(box, "surface", q), 0.005, 3)
+    assert not [c for c in standing if "floor" in (c.a.name, c.b.name)]
+    close = close_pairs(model, _trajectory(box, "surface", q, swing), 0.005, 3)
+    floor = [c for c in close if "floor" in (c.a.name, c.b.name)]
+    assert floor and {(c.node, c.fraction) for c in floor} == {(2, 0.0)}
+    assert {c.a.name for c in floor} | {c.b.name for c in floor} == {
+        "floor",
+        g1.FOOT_LINKS[0],
+    }
+    assert min(c.distance for c in floor) < -0.005
 
 
 def test_a_pose_between_two_nodes_is_checked(scene):

@@ -39,7 +39,7 @@ class ContactCfg:
     stiffness: float = 50.0
     prehensile: bool = False
     palm_half_extents_m: list[float] = field(default_factory=lambda: [0.04, 0.03])
-    slack_max_m: float | None = 0.01
+    slack_max_m: float | None = 0.004
 
     def check(self) -> list[tuple[str, str]]:
         errors = []

@@ -6,7 +6,9 @@ The trajectory is replayed kinematically in the MuJoCo scene, at every node and 
 every geom's margin raised so that MuJoCo reports pairs up to ``margin`` apart, not only
 those in contact. A pair the schedule allows is left out:
 
-- a foot on the floor, and on the object it stands on;
+- a foot on its support (the floor or the object it stands on) while it stands: a swing
+  foot in the floor is the robot in its environment, as the evaluation counts it
+  (:func:`scheduled`);
 - a hand on the object it holds;
 - an object on what supports it (the floor or a fixed object, or the object it rests on),
   and one not yet simulated where the scene put it;
@@ -82,19 +84,29 @@ def body_of(model: mujoco.MjModel, geom: int, movable: list[str]) -> Body:
     return Body(ROBOT, link, name or f"{link}#{geom}")
 
 
+def scheduled(
+    traj: dict[str, np.ndarray], k: int, robot: Body, other: Body, names: list[str]
+) -> bool:
+    """The schedule makes ``robot`` touch ``other`` at node k: a foot on its support while
+    it stands, a hand on the object it holds."""
+    if robot.name in g1.FOOT_LINKS:
+        i = g1.FOOT_LINKS.index(robot.name)
+        on = int(traj["foot_object"][k, i])
+        support_is_other = (
+            other.kind == "floor" if on < 0 else other.kind == "object" and other.name == names[on]
+        )
+        return bool(traj["feet_contact"][k, i]) and support_is_other
+    if robot.name in g1.HAND_LINKS and other.kind == "object":
+        i = g1.HAND_LINKS.index(robot.name)
+        return int(traj["hand_object"][k, i]) == names.index(other.name)
+    return False
+
+
 def allowed_at(traj: dict[str, np.ndarray], k: int, a: Body, b: Body, names: list[str]) -> bool:
     """The schedule lets ``a`` and ``b`` touch at node k."""
     for first, second in ((a, b), (b, a)):
-        if first.kind == ROBOT and first.name in g1.FOOT_LINKS:
-            i = g1.FOOT_LINKS.index(first.name)
-            if second.kind == "floor":
-                return True
-            if second.kind == "object" and traj["foot_object"][k, i] == names.index(second.name):
-                return True
-        if first.kind == ROBOT and first.name in g1.HAND_LINKS and second.kind == "object":
-            i = g1.HAND_LINKS.index(first.name)
-            if traj["hand_object"][k, i] == names.index(second.name):
-                return True
+        if first.kind == ROBOT and scheduled(traj, k, first, second, names):
+            return True
         if first.kind == "object":
             j = names.index(first.name)
             resting = str(traj["support_kind"][k, j]) != "none" or not traj["object_active"][k, j]

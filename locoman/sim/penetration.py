@@ -23,8 +23,7 @@ import dataclasses
 import mujoco
 import numpy as np
 
-from locoman.scene import g1
-from locoman.sim.audit import Body, body_of
+from locoman.sim.audit import Body, body_of, scheduled
 from locoman.sim.evaluate import ROBOT, scene_qpos
 
 # Shallower than this is touching, not penetrating [m]: MuJoCo reports a sole standing on
@@ -32,24 +31,6 @@ from locoman.sim.evaluate import ROBOT, scene_qpos
 RESOLUTION_M = 1e-6
 CLASSES = ("self", "robot_object", "robot_environment", "scheduled_contact", "object_environment")
 HEADLINE = ("self", "robot_object", "robot_environment")  # paper A's penetration
-
-
-def scheduled(
-    traj: dict[str, np.ndarray], k: int, robot: Body, other: Body, names: list[str]
-) -> bool:
-    """The schedule makes ``robot`` touch ``other`` at node k: a foot on its support while
-    it stands, a hand on the object it holds."""
-    if robot.name in g1.FOOT_LINKS:
-        i = g1.FOOT_LINKS.index(robot.name)
-        on = int(traj["foot_object"][k, i])
-        support_is_other = (
-            other.kind == "floor" if on < 0 else other.kind == "object" and other.name == names[on]
-        )
-        return bool(traj["feet_contact"][k, i]) and support_is_other
-    if robot.name in g1.HAND_LINKS and other.kind == "object":
-        i = g1.HAND_LINKS.index(robot.name)
-        return int(traj["hand_object"][k, i]) == names.index(other.name)
-    return False
 
 
 def classify(traj: dict[str, np.ndarray], k: int, a: Body, b: Body, names: list[str]) -> str:

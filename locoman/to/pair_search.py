@@ -241,7 +241,15 @@ def round_pairs(
 
 def trajectory_arrays(traj: Trajectory, names: list[str]) -> dict[str, np.ndarray]:
     """What :func:`locoman.sim.audit.close_pairs` reads of a trajectory."""
-    fields = ("q", "object_q", "foot_object", "hand_object", "support_kind", "support_base")
+    fields = (
+        "q",
+        "object_q",
+        "foot_object",
+        "feet_contact",
+        "hand_object",
+        "support_kind",
+        "support_base",
+    )
     return {f: getattr(traj, f) for f in fields} | {
         "object_active": traj.object_active,
         "object_names": np.array(names),
