@@ -146,6 +146,23 @@ def _close(a: Body, b: Body, node: int = 2, fraction: float = 0.0) -> ClosePair:
     return ClosePair(node, fraction, a, b, -0.01, np.array([0.4, 0.0, 0.8]))
 
 
+def test_a_holding_hands_wrist_against_its_object_may_touch_it(scene):
+    """The left hand holds the box at node 2 only: there its wrist's found pairs against
+    the box keep it out of the box (touching allowed), not a margin away, which would push
+    the palm off the face; at node 1 and for a knee they keep the margin."""
+    schedule = _trajectory(np.tile(BOX_ON_TABLE, (NODES, 1)))
+    schedule["hand_object"][2, 0] = 0
+    scene_ = dataclasses.replace(_box_by_the_table(scene), schedule=schedule)
+    box = Body("object", "box", "box/body")
+    wrist = Body("robot", "left_wrist_pitch_link", "left_wrist_pitch_link#44")
+    held = pairs_for(_close(wrist, box), 2, scene_)
+    assert held and all(p.touching for p in held)
+    assert not any(p.touching for p in pairs_for(_close(wrist, box), 1, scene_))
+    assert not any(p.touching for p in pairs_for(_close(KNEE, box), 2, scene_))
+    right = Body("robot", "right_wrist_yaw_link", "right_wrist_yaw_link#62")
+    assert not any(p.touching for p in pairs_for(_close(right, box), 2, scene_))
+
+
 def test_found_pairs_cover_the_nodes_around_once_and_never_the_first(scene):
     scene_ = _box_by_the_table(scene)
     table = Body("fixed", "table", "table/top")

@@ -43,6 +43,14 @@ from locoman.to.transcription import (
 
 KIND = "found"
 PROMOTED = "found_hard"  # a found pair still penetrated after a round with it
+# The links between each palm and its forearm. Holding an object they sit millimetres off
+# its face, so their found pairs against it keep them out of it (touching allowed), not a
+# margin away: at the margin they pushed the palm off the face by its whole slack (S2's
+# AllKeyframe, 5 kg, 1.2 rad: the wrists 7-8 mm from the held box, the palm 4-5.7 mm off it).
+WRIST_LINKS = tuple(
+    tuple(f"{side}_wrist_{joint}_link" for joint in ("roll", "pitch", "yaw"))
+    for side in ("left", "right")
+)
 # The floor as a box under it, for a link or a carried object that reaches it.
 FLOOR_BOX = Obstacle("floor", np.array([0.0, 0.0, -0.5]), 0.0, np.array([50.0, 50.0, 0.5]))
 
@@ -79,6 +87,14 @@ class Scene:
     frames: ContactFrames
     schedule: dict[str, np.ndarray] | None = None
     spacing_m: float = 0.04
+
+    def holding_wrist(self, k: int, link: str, j: int) -> bool:
+        """``link`` is a wrist link (:data:`WRIST_LINKS`) of a hand that holds object j at
+        node k."""
+        return self.schedule is not None and any(
+            link in WRIST_LINKS[i] and int(self.schedule["hand_object"][k, i]) == j
+            for i in range(2)
+        )
 
     def allowed(self, k: int, close: ClosePair) -> bool:
         """The schedule lets ``close``'s bodies touch at node k."""
@@ -126,7 +142,8 @@ def _object_side(
 
 
 def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
-    """The TO's pairs at node k that keep the two bodies of ``close`` apart."""
+    """The TO's pairs at node k that keep the two bodies of ``close`` apart (a holding
+    hand's wrist and the object it holds: out of it, touching allowed)."""
     a, b = close.a, close.b
     if a.kind != ROBOT and b.kind == ROBOT:
         a, b = b, a
@@ -145,7 +162,12 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
             j = scene.names.index(b.name)
             boxes = object_boxes(scene.objects[j])
             i = _nearest_box(scene.objects[j], scene.object_q[k, j], close.point)
-            return list(sphere_box_pairs(k, KIND, spheres, boxes[i : i + 1], j, b.name, first=i))
+            touching = scene.holding_wrist(k, a.name, j)
+            return list(
+                sphere_box_pairs(
+                    k, KIND, spheres, boxes[i : i + 1], j, b.name, touching=touching, first=i
+                )
+            )
         obstacle = FLOOR_BOX if b.kind == "floor" else scene.obstacles[b.name]
         return list(obstacle_pairs(k, KIND, spheres, obstacle))
     if a.kind != "object" and b.kind == "object":
