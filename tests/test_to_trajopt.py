@@ -110,18 +110,21 @@ def test_a_warm_start_from_the_optimum_converges_in_a_few_iterations(tmp_path_fa
     assert warm.cost == pytest.approx(cold.cost, rel=1e-6)
 
 
-def test_an_unconverged_gauss_newton_solve_goes_on_with_the_exact_hessian(tmp_path_factory, squat):
-    """Stopped after 5 Gauss-Newton iterations, the squat goes on from that point with the
-    exact Hessian, within the same iteration budget, to the same optimum. (Switched after 3
-    it ends at another KKT point, cost 6.22 against 5.97: the problem is not convex, and
-    the exact Hessian from so early a point takes another path.)"""
-    optimizer = _optimizer(tmp_path_factory, max_iterations=200, exact_after_iterations=5)
-    traj = optimizer.solve()
+@pytest.mark.parametrize("first", ["gauss_newton", "projected"])
+def test_an_unconverged_solve_goes_on_with_the_exact_hessian(tmp_path_factory, squat, first):
+    """Stopped after 5 iterations with the first Hessian, the squat goes on from that point
+    with the exact one, within the same iteration budget, to the same optimum. (Switched
+    from Gauss-Newton after 3 it ends at another KKT point, cost 6.22 against 5.97: the
+    problem is not convex, and the exact Hessian from so early a point takes another
+    path.)"""
+    limits = {"hessian": first, "max_iterations": 200, "exact_after_iterations": 5}
+    traj = _optimizer(tmp_path_factory, **limits).solve()
     assert traj.success, traj.status
     assert 0 < traj.exact_iterations == traj.iterations - 5
     assert traj.cost == pytest.approx(squat.cost, rel=1e-4)
     assert squat.exact_iterations == 0
-    capped = _optimizer(tmp_path_factory, max_iterations=5, exact_after_iterations=3).solve()
+    capped = {"hessian": first, "max_iterations": 5, "exact_after_iterations": 3}
+    capped = _optimizer(tmp_path_factory, **capped).solve()
     assert not capped.success and capped.iterations == 5 and capped.exact_iterations == 2
 
 

@@ -85,16 +85,22 @@ class SolverCfg:
         max_wall_time_s: IPOPT's max_wall_time [s]: a solve stopped by it is a failed solve
             (status ``Maximum_WallTime_Exceeded``); None: no limit. The grids' time limit.
         hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
-            ``gauss_newton`` (default): the costs' exact Hessian and the penalties'
-            Gauss-Newton one, without the constraints' second derivatives; ``exact``: with
-            them and the penalties' r nabla^2 r (but the robot's own sphere pairs'). Both
-            lead to KKT points of the same problem; the exact one converges fast where
-            penalties are active at the optimum, and is indefinite far from it
+            ``gauss_newton``: the costs' Hessian and the penalties' Gauss-Newton one,
+            without the constraints' second derivatives; ``exact``: with them and the
+            penalties' r nabla^2 r (but the robot's own sphere pairs'); ``projected``
+            (default): the exact one with each term call's curvature projected onto the
+            positive semidefinite cone (:mod:`locoman.to.convexify`), so that IPOPT needs
+            no inertia corrections. All lead to KKT points of the same problem; the exact
+            one converges fast near an optimum and is indefinite far from it
             (``docs/trajectory-optimisation.md``).
-        exact_after_iterations: With the ``gauss_newton`` Hessian: a solve that has not
+        exact_after_iterations: With another Hessian than ``exact``: a solve that has not
             converged after this many iterations goes on from its primal-dual point with the
-            ``exact`` one, up to ``max_iterations`` in all (Gauss-Newton cycles near an
-            optimum where the constraints' curvature matters); None: Gauss-Newton throughout.
+            ``exact`` one, up to ``max_iterations`` in all (the others converge linearly
+            near an optimum where the constraints' curvature matters); None: never.
+        exact_when_stalled: With another Hessian than ``exact``: the relative change of
+            the objective per iteration [-] under which (for 10 iterations, near
+            feasibility) the solve goes on with the exact Hessian before
+            ``exact_after_iterations``; None: only after them.
     """
 
     backend: str = "ipopt_mumps"
@@ -107,8 +113,9 @@ class SolverCfg:
     print_level: int = 5
     warm_start: bool = True
     max_wall_time_s: float | None = None
-    hessian: str = "gauss_newton"
+    hessian: str = "projected"
     exact_after_iterations: int | None = 150
+    exact_when_stalled: float | None = 1e-3
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -129,6 +136,8 @@ class SolverCfg:
             errors.append(("hessian", f"must be one of {list(HESSIANS)}"))
         if self.exact_after_iterations is not None and self.exact_after_iterations < 1:
             errors.append(("exact_after_iterations", "must be >= 1, or null for never"))
+        if self.exact_when_stalled is not None and not self.exact_when_stalled > 0.0:
+            errors.append(("exact_when_stalled", "must be > 0, or null for never"))
         return errors
 
 

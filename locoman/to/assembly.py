@@ -41,7 +41,9 @@ import numpy as np
 from locoman.to.compile import Recipe, SolverBuildError, load_or_compile
 from locoman.to.oracles import OracleCallback, Oracles, unavailable_jacobian
 
-HESSIANS = ("gauss_newton", "exact")
+# The Hessian flavours: without the constraints' curvature; with it, each call's projected
+# onto the positive semidefinite cone (:mod:`locoman.to.convexify`); with it as it is.
+HESSIANS = ("gauss_newton", "projected", "exact")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -352,9 +354,10 @@ class BlockNLP:
         J_x = J_z P,   grad_x = P' grad_z,   H_x = P' H_z P  (+ sum_i mu_i nabla^2 F_i),
 
     (the identity block of P multiplied out by hand),
-    the last term, with mu = dL/dy, in the exact Hessian only (the Gauss-Newton one leaves it
-    out, as it leaves out every constraint's curvature). So a collision pair's term is a
-    small function of two sphere centres, and the NLP has no variable for them.
+    the last term, with mu = dL/dy, in the exact and projected Hessians only (the
+    Gauss-Newton one leaves it out, as it leaves out every constraint's curvature). So a
+    collision pair's term is a small function of two sphere centres, and the NLP has no
+    variable for them.
 
     IPOPT's oracles are evaluated numerically (:class:`locoman.to.oracles.Oracles`): the
     compiled terms on NumPy buffers, the sums and the chain rule in SciPy, the far calls of

@@ -1,8 +1,8 @@
 """Paper A's whole-body TO of one scenario: the problem transcribed as term calls
 (:mod:`locoman.to.transcription`), assembled over the robot's compiled terms
-(:mod:`locoman.to.assembly`), and solved by IPOPT, first with the Gauss-Newton Hessian and,
-where that has not converged after ``exact_after_iterations``, on from its primal-dual point
-with the exact one.
+(:mod:`locoman.to.assembly`), and solved by IPOPT, first with the configured Hessian (the
+projected one by default) and, where that has not converged after
+``exact_after_iterations``, on from its primal-dual point with the exact one.
 """
 
 from __future__ import annotations
@@ -176,7 +176,9 @@ class TrajectoryOptimizer:
         key = (structure_key(transcription.n_x + transcription.n_y, transcription.blocks), hessian)
         if key not in self._nlps:
             first = (
-                {} if self.switch_at is None or hessian == "exact" else {"max_iter": self.switch_at}
+                {}
+                if self.switch_at is None or hessian == "exact"
+                else {"max_iter": self.switch_at, **self._stall_options()}
             )
             self._nlps[key] = BlockNLP(
                 transcription.n_x,
@@ -188,6 +190,21 @@ class TrajectoryOptimizer:
                 transcription.n_y,
             )
         return self._nlps[key]
+
+    def _stall_options(self) -> dict:
+        """IPOPT's "acceptable" stop as the first phase's stall test: the objective's
+        relative change under ``exact_when_stalled`` for 10 iterations, with the scaled
+        error under 0.1 and the constraints within 1e-2 (a linear crawl towards the
+        optimum, which the exact Hessian finishes in a few dozen iterations)."""
+        change = self.cfg.solver.exact_when_stalled
+        if change is None:
+            return {}
+        return {
+            "acceptable_iter": 10,
+            "acceptable_tol": 0.1,
+            "acceptable_constr_viol_tol": 1e-2,
+            "acceptable_obj_change_tol": change,
+        }
 
     def solve(
         self,
@@ -216,7 +233,7 @@ class TrajectoryOptimizer:
         tic = time.perf_counter()
         tr = self.transcribe(keyframe_costs, numbers, pairs)
         hessian = hessian or self.cfg.solver.hessian
-        switch_at = self.switch_at if hessian == "gauss_newton" else None
+        switch_at = self.switch_at if hessian != "exact" else None
         nlp = self._nlp(tr, hessian)
         transcribed_s = time.perf_counter() - tic
         inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
@@ -247,18 +264,19 @@ class TrajectoryOptimizer:
         p = parameter_vector(tr.blocks)
         args = (X0, lo.ravel(order="F"), hi.ravel(order="F"), p)
         result = nlp.solve(*args, warm)
-        if result.success or switch_at is None or result.iterations < switch_at:
+        stalled = result.status == "Solved_To_Acceptable_Level"
+        if switch_at is None or (not stalled and (result.success or result.iterations < switch_at)):
             return self._trajectory(result, tr, nlp, transcribed_s, hessian)
-        # Gauss-Newton used its share of the iterations without converging: the exact
-        # Hessian goes on from its primal-dual point with what is left.
+        # The first Hessian used its share of the iterations without converging: the exact
+        # one goes on from its primal-dual point with what is left.
         limits = {"max_iter": self.cfg.solver.max_iterations - result.iterations}
         if self.cfg.solver.max_wall_time_s is not None:
             limits["max_wall_time"] = max(
                 self.cfg.solver.max_wall_time_s - result.solve_time_s, 1.0
             )
         print(
-            f"[solve] not converged after {result.iterations} Gauss-Newton iterations "
-            f"({result.status}): on with the exact Hessian",
+            f"[solve] not converged after {result.iterations} iterations with the {hessian} "
+            f"Hessian ({result.status}): on with the exact one",
             flush=True,
         )
         exact = self._nlp(tr, "exact")

@@ -9,6 +9,10 @@ SciPy's sparse products:
     J_x = J_zx + J_zy P,   grad_x = grad_zx + P' grad_zy,
     H_x = H_xx + triu(H_xy P + P' H_yx) + triu(P' H_yy P)  (+ sum_i mu_i nabla^2 F_i).
 
+In the ``projected`` flavour each call's Hessian (and each definition's sum
+mu_i nabla^2 F_i) is projected onto the positive semidefinite cone first
+(:mod:`locoman.to.convexify`).
+
 Two things make this cheaper than the same sums as a CasADi MX graph (issue 47; the numbers
 are in docs/performance.md):
 
@@ -32,6 +36,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from locoman.to.compile import SolverBuildError
+from locoman.to.convexify import BlockPattern, block_pattern, project_psd
 
 # [cost units] A one-sided penalty's call whose cost ||r||^2 is below this is skipped in the
 # derivatives: its gradient is about 2 ||r||^2 / softness, below 1e-17 (softness >= 1 mm).
@@ -149,6 +154,7 @@ class _Calls:
     hess: Mapped | None
     hess_at: np.ndarray  # (calls, nnz of the term's Hessian): positions in H_z's pattern
     jac_at: np.ndarray  # (calls, nnz of J_g): positions in J_z's pattern
+    projected: BlockPattern | None  # the projected flavour's pattern
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,6 +173,7 @@ class _Definition:
     hess_keep: np.ndarray
     hess_rows: np.ndarray
     hess_cols: np.ndarray
+    projected: BlockPattern | None
 
 
 class _Point:
@@ -191,6 +198,9 @@ class Oracles:
     def __init__(
         self, n_x: int, blocks: Sequence, n_g: int, derivatives: dict, hessian: str, n_y: int
     ) -> None:
+        self.project = hessian == "projected"
+        # The terms' flavour: the projected Hessian projects the exact one's calls.
+        hessian = "exact" if self.project else hessian
         self.n_x, self.n_y, self.n_g, self.hessian = n_x, n_y, n_g, hessian
         n_z = n_x + n_y
         offsets = np.cumsum([0] + [b.p.size for b in blocks])
@@ -209,13 +219,17 @@ class Oracles:
         if len(np.unique(target)) != len(target) or len(target) != n_y:
             raise SolverBuildError("every virtual variable must be defined exactly once")
         # Patterns of the terms' triplets: J_z (n_g, n_z), H_z upper (n_z, n_z), P (n_y, n_x).
-        jac_r, jac_c, hess_r, hess_c = [], [], [], []
+        jac_r, jac_c, hess_r, hess_c, projected = [], [], [], [], []
         for block, _, d in calls:
             if block.term.ng:
                 jr, jc = d.jac_pattern
                 jac_r.append(block.rows[:, jr].ravel())
                 jac_c.append(block.x[:, jc].ravel())
             hr, hc = d.hess_pattern[hessian]
+            dense = block_pattern(hr, hc) if self.project and len(hr) else None
+            if dense is not None:
+                hr, hc = dense.rows, dense.cols
+            projected.append(dense)
             a, b = block.x[:, hr], block.x[:, hc]
             hess_r.append(np.minimum(a, b).ravel())
             hess_c.append(np.maximum(a, b).ravel())
@@ -224,7 +238,7 @@ class Oracles:
         jac_at = _split(self.J_z.where, [len(r) for r in jac_r])
         hess_at = _split(self.H_z.where, [len(r) for r in hess_r])
         self._calls: list[_Calls] = []
-        for block, params, d in calls:
+        for (block, params, d), dense in zip(calls, projected, strict=True):
             n = block.calls
             has_hess = len(d.hess_pattern[hessian][0]) > 0
             self._calls.append(
@@ -237,6 +251,7 @@ class Oracles:
                     Mapped(d.hess[hessian], n) if has_hess else None,
                     next(hess_at).reshape(n, -1),
                     next(jac_at).reshape(n, -1) if block.term.ng else np.zeros((n, 0), int),
+                    dense,
                 )
             )
         self._point: _Point | None = None
@@ -252,8 +267,10 @@ class Oracles:
         keep = np.flatnonzero(jc < n_in)
         hr, hc = d.hess_pattern["exact"]
         hess_keep = np.flatnonzero((hr < n_in) & (hc < n_in))
-        a, b = inputs[:, hr[hess_keep]], inputs[:, hc[hess_keep]]
         exact = self.hessian == "exact" and len(hess_keep) > 0
+        dense = block_pattern(hr[hess_keep], hc[hess_keep]) if self.project and exact else None
+        kept_rows, kept_cols = (dense.rows, dense.cols) if dense else (hr[hess_keep], hc[hess_keep])
+        a, b = inputs[:, kept_rows], inputs[:, kept_cols]
         return _Definition(
             block,
             params,
@@ -267,6 +284,7 @@ class Oracles:
             hess_keep,
             np.minimum(a, b),
             np.maximum(a, b),
+            dense,
         )
 
     def _structure(self) -> None:
@@ -412,6 +430,8 @@ class Oracles:
             lam = lam_g[c.block.rows[calls]]
             sigma = np.full(count, lam_f)
             (hnz,) = c.hess.some(count, xb[calls], pb[calls], lam, sigma)
+            if c.projected is not None:
+                hnz = project_psd(hnz, c.projected)
             index.append(c.hess_at[calls].ravel())
             values.append(hnz.ravel())
         data = np.bincount(_joined(index), _joined(values, float), minlength=self.H_z.nnz)
@@ -438,7 +458,10 @@ class Oracles:
                 continue
             sigma = np.full(len(calls), lam_f)
             (hnz,) = e.hess.some(len(calls), xb[calls], pb[calls], lam[calls], sigma)
-            values.append(hnz[:, e.hess_keep].ravel())
+            curvature = hnz[:, e.hess_keep]
+            if e.projected is not None:
+                curvature = project_psd(curvature, e.projected)
+            values.append(curvature.ravel())
             rows.append(e.hess_rows[calls].ravel())
             cols.append(e.hess_cols[calls].ravel())
         shape = (n_x, n_x)
