@@ -135,12 +135,13 @@ def test_a_stalled_first_phase_goes_on_with_the_exact_hessian_early(tmp_path_fac
     10 iterations), the projected phase stops as stalled long before its 150 iterations and
     the exact Hessian finishes, at the same optimum; without the test, the squat converges
     in the projected phase alone."""
-    loose = _optimizer(tmp_path_factory, max_iterations=200, exact_when_stalled=0.5).solve()
+    limits = {"hessian": "projected", "max_iterations": 200}
+    loose = _optimizer(tmp_path_factory, **limits, exact_when_stalled=0.5).solve()
     assert loose.success, loose.status
     first = loose.iterations - loose.exact_iterations
     assert loose.exact_iterations > 0 and 10 <= first < 150, (first, loose.exact_iterations)
     assert loose.cost == pytest.approx(squat.cost, rel=1e-4)
-    alone = _optimizer(tmp_path_factory, max_iterations=200, exact_when_stalled=None).solve()
+    alone = _optimizer(tmp_path_factory, **limits, exact_when_stalled=None).solve()
     assert alone.success and alone.exact_iterations == 0, (alone.status, alone.exact_iterations)
     assert alone.cost == pytest.approx(squat.cost, rel=1e-4)
 

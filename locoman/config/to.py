@@ -85,14 +85,15 @@ class SolverCfg:
         max_wall_time_s: IPOPT's max_wall_time [s]: a solve stopped by it is a failed solve
             (status ``Maximum_WallTime_Exceeded``); None: no limit. The grids' time limit.
         hessian: The Hessian of the Lagrangian IPOPT gets (:data:`HESSIANS`).
-            ``gauss_newton``: the costs' Hessian and the penalties' Gauss-Newton one,
-            without the constraints' second derivatives; ``exact``: with them and the
-            penalties' r nabla^2 r (but the robot's own sphere pairs'); ``projected``
-            (default): the exact one with each term call's curvature projected onto the
+            ``gauss_newton`` (default): the costs' Hessian and the penalties'
+            Gauss-Newton one, without the constraints' second derivatives; ``exact``: with
+            them and the penalties' r nabla^2 r (but the robot's own sphere pairs');
+            ``projected``: the exact one with each term call's Hessian projected onto the
             positive semidefinite cone (:mod:`locoman.to.convexify`), so that IPOPT needs
-            no inertia corrections. All lead to KKT points of the same problem; the exact
-            one converges fast near an optimum and is indefinite far from it
-            (``docs/trajectory-optimisation.md``).
+            no inertia corrections (S1 in a third of the iterations; on S2 it can settle in
+            a worse basin: ``docs/performance.md``). All lead to KKT points of the same
+            problem; the exact one converges fast near an optimum and is indefinite far
+            from it (``docs/trajectory-optimisation.md``).
         exact_after_iterations: With another Hessian than ``exact``: a solve that has not
             converged after this many iterations goes on from its primal-dual point with the
             ``exact`` one, up to ``max_iterations`` in all (the others converge linearly
@@ -100,7 +101,8 @@ class SolverCfg:
         exact_when_stalled: With another Hessian than ``exact``: the relative change of
             the objective per iteration [-] under which (for 10 iterations, near
             feasibility) the solve goes on with the exact Hessian before
-            ``exact_after_iterations``; None: only after them.
+            ``exact_after_iterations`` (1e-3 suits the projected Hessian); None: only
+            after them.
     """
 
     backend: str = "ipopt_mumps"
@@ -113,9 +115,9 @@ class SolverCfg:
     print_level: int = 5
     warm_start: bool = True
     max_wall_time_s: float | None = None
-    hessian: str = "projected"
+    hessian: str = "gauss_newton"
     exact_after_iterations: int | None = 150
-    exact_when_stalled: float | None = 1e-3
+    exact_when_stalled: float | None = None
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
