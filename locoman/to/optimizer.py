@@ -1,8 +1,9 @@
 """Paper A's whole-body TO of one scenario: the problem transcribed as term calls
 (:mod:`locoman.to.transcription`), assembled over the robot's compiled terms
-(:mod:`locoman.to.assembly`), and solved by IPOPT, first with the configured Hessian (the
-projected one by default) and, where that has not converged after
-``exact_after_iterations``, on from its primal-dual point with the exact one.
+(:mod:`locoman.to.assembly`), and solved by IPOPT, first with the configured Hessian
+(Gauss-Newton by default) and, where that has not converged after
+``exact_after_iterations`` or has stalled (``exact_when_stalled``), on from its primal-dual
+point with the exact one.
 """
 
 from __future__ import annotations
@@ -267,8 +268,8 @@ class TrajectoryOptimizer:
         stalled = result.status == "Solved_To_Acceptable_Level"
         if switch_at is None or (not stalled and (result.success or result.iterations < switch_at)):
             return self._trajectory(result, tr, nlp, transcribed_s, hessian)
-        # The first Hessian used its share of the iterations without converging: the exact
-        # one goes on from its primal-dual point with what is left.
+        # The first Hessian used its share of the iterations without converging, or stalled:
+        # the exact one goes on from its primal-dual point with what is left.
         limits = {"max_iter": self.cfg.solver.max_iterations - result.iterations}
         if self.cfg.solver.max_wall_time_s is not None:
             limits["max_wall_time"] = max(
