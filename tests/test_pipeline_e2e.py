@@ -32,6 +32,21 @@ pytestmark = pytest.mark.slow
 # with pytest 9.2 and xdist 3.8: they ran on two workers). The experiments' tests, which
 # need none of them, are in test_dvc_experiments.py so that the other worker takes them.
 
+O1, O0 = "compile_flags:\n    - -O1\n", "compile_flags:\n    - -O0\n"
+
+
+@pytest.fixture(scope="module")
+def workdir(workdir: Path) -> Path:
+    """The copy builds the G1's terms with ``-O0``: tcc where installed, about 5 s against
+    gcc ``-O1``'s 50 s (170 s beside a grid) on this 2-core machine, for tiny's solves
+    about 1.8 times slower in the functions (``docs/performance.md``); the same C, so
+    nothing this file checks depends on the compiler."""
+    params = workdir / "params.yaml"
+    text = params.read_text()
+    assert text.count(O1) == 1, "params.yaml's solve.solver.compile_flags moved"
+    params.write_text(text.replace(O1, O0))
+    return workdir
+
 
 def test_bad_params_fail_at_start_up_naming_the_key(workdir, run_cli):
     params = workdir / "params.yaml"
