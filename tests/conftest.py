@@ -52,8 +52,8 @@ def _run_cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
 
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
-    # The copy's TO compiles into (and reuses) the checkout's cache: the generated C is the
-    # same, so `make test` and `make run` compile each problem structure once between them.
+    # The copy's TO compiles into (and reuses) the checkout's cache: a later run with the
+    # same compiler and flags builds nothing.
     env.setdefault(CACHE_ENV, str(REPO / ".cache" / "casadi"))
     return subprocess.run(
         args, cwd=cwd, env=env, capture_output=True, text=True, timeout=CLI_TIMEOUT_S
