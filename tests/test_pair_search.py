@@ -276,12 +276,17 @@ class _Stuck:
     """An optimizer that moves nothing: each solve returns the trajectory it starts from, as
     a solve whose pairs cannot be met within its tolerance would leave it."""
 
-    def __init__(self) -> None:
+    def __init__(self, guess: Trajectory | None = None) -> None:
         self.transcription = SimpleNamespace(pairs=[])
         self.pairs: list[int] = []
+        self.guess = guess
+        self.restarts: list[int] = []
 
-    def solve(self, pairs, warm_start, hessian):
+    def solve(self, pairs, warm_start=None, hessian=None):
         self.pairs.append(len(pairs))
+        if warm_start is None:  # a restart from the guess
+            self.restarts.append(len(pairs))
+            return self.guess
         return warm_start
 
 
@@ -302,12 +307,39 @@ def test_a_pair_no_round_frees_ends_the_search_unfreed_naming_it(scene):
     sunk[1:, 2] -= 0.05
     scene_ = dataclasses.replace(_box_by_the_table(scene), object_q=sunk[:, None, :])
     stuck = _Stuck()
-    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
     _, rounds, missing, unfreed = search(stuck, _solved(_trajectory(sunk)), model, scene_, cfg)
     assert [r.pairs_added > 0 for r in rounds] == [True, True, False]
     assert len(stuck.pairs) == 2 and stuck.pairs[0] < stuck.pairs[1]
     assert missing == []  # every pair it needs is there
     assert unfreed and all(c.distance < -cfg.unfreed_m for c in unfreed)
+    assert {frozenset(c.label.split(" | ")) for c in unfreed} == {
+        frozenset({"box/body", "table/top"})
+    }
+
+
+def test_pairs_no_round_frees_are_solved_again_from_the_guess_with_every_pair(scene):
+    """Issue 48 (S1's six unfreed grid cells): the rounds leave the box in the table; the
+    restart solves from the guess with every pair found (the solve there frees it) and the
+    rounds check its solution: no pair missing or unfreed."""
+    model, scene_, first = _sunk_box(scene)
+    freed = _solved(_trajectory(np.tile(BOX_ON_TABLE, (NODES, 1))))
+    solver = _Stuck(guess=freed)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=1)
+    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    assert solver.restarts == [max(solver.pairs[:-1])]  # once, with every pair found
+    assert [r.restart for r in rounds] == [False, False, False, True, False]
+    assert traj is not first and traj.success and missing == [] and unfreed == []
+
+
+def test_restarts_are_bounded_and_a_pair_they_cannot_free_stays_named(scene):
+    """A restart that lands in the table again: its rounds run, the search stops after
+    ``restarts`` restarts and names the pair unfreed."""
+    model, scene_, first = _sunk_box(scene)
+    solver = _Stuck(guess=first)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=2)
+    _, rounds, _, unfreed = search(solver, first, model, scene_, cfg)
+    assert len(solver.restarts) == 2 and sum(r.restart for r in rounds) == 2
     assert {frozenset(c.label.split(" | ")) for c in unfreed} == {
         frozenset({"box/body", "table/top"})
     }
@@ -323,7 +355,7 @@ class _FailsWith(_Stuck):
         self.status = status
         self.kinds: list[set[str]] = []
 
-    def solve(self, pairs, warm_start, hessian):
+    def solve(self, pairs, warm_start=None, hessian=None):
         self.kinds.append({p.kind for p in pairs})
         moved = super().solve(pairs, warm_start, hessian)
         if not self.fails(len(self.pairs), pairs):
@@ -349,7 +381,7 @@ def test_a_round_that_fails_with_promoted_pairs_is_solved_again_without_them(sce
     round promotes: the search ends with the pair unfreed, not from a failed point."""
     model, scene_, first = _sunk_box(scene)
     solver = _FailsWith(_with_promotions)
-    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
     traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
     assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True, False]
     assert solver.pairs[0] == solver.pairs[2] < solver.pairs[1]

@@ -76,6 +76,7 @@ SOLVE_NUMBERS = (
     "solve_time_s",
     "collision_rounds",
     "pairs_found",
+    "restarts",
 )
 # Statuses of a record: the TO converged, it stopped without converging (iteration or time
 # limit, infeasibility: IPOPT's status says which), or the cell could not run (the reason).
@@ -276,6 +277,8 @@ def _solve(
         # Rounds of found pairs that added any (issue 48), and how many they added.
         "collision_rounds": sum(r["pairs_added"] > 0 for r in solved["collision_rounds"]),
         "pairs_found": solved["pairs_found"],
+        # Solves started again from the guess with the pairs found (CollisionCfg.restarts).
+        "restarts": sum(r.get("restart", False) for r in solved["collision_rounds"]),
     }
 
 

@@ -58,6 +58,7 @@ SUMMARY_COLUMNS = (
     "iterations",
     "collision_rounds",
     "pairs_found",
+    "restarts",
     "avg_penetration_m",
     "max_penetration_m",
     "max_penetration_pair",
@@ -297,7 +298,7 @@ def _mm(value: float | None) -> str:
 def markdown_table(records: Sequence[dict[str, Any]]) -> str:
     """The summary of one figure as a Markdown table (penetrations in mm)."""
     head = (
-        "| run | mass [kg] | yaw [rad] | status | iterations | rounds / pairs found "
+        "| run | mass [kg] | yaw [rad] | status | iterations | rounds / pairs found / restarts "
         "| avg pen. [mm] | max pen. [mm] | deepest pair | dynamics residual | goal error [mm] |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
@@ -309,6 +310,7 @@ def markdown_table(records: Sequence[dict[str, Any]]) -> str:
             f"| {r['label']} | {r['box_mass']:g} | {r['initial_yaw']:g} | {status} "
             f"| {r.get('iterations', '-')} "
             f"| {r.get('collision_rounds', '-')} / {r.get('pairs_found', '-')} "
+            f"/ {r.get('restarts', '-')} "
             f"| {_mm(r.get('avg_penetration_m'))} "
             f"| {_mm(r.get('max_penetration_m'))} "
             f"| {' / '.join(r.get('max_penetration_pair') or []) or '-'} "

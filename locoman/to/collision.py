@@ -98,7 +98,12 @@ class CollisionCfg:
             keep coming back: a hand through a post, a carried box into a platform) join
             again under this treatment; ``off``, or the same as ``found``: they stay as
             they are.
-        rounds: The most rounds of :attr:`found` pairs after the first solve.
+        rounds: The most rounds of :attr:`found` pairs after the first solve (and after
+            each restart).
+        restarts: When the rounds end with pairs missing or unfreed, the solve starts again
+            from Sec. IV-C.2's guess with every pair found so far (present from the first
+            iteration, they keep the motion out of the minimum that held it), and the rounds
+            go on from its solution; at most this many times (0: never).
         audit_margin_m: A pair of bodies closer than this in the replay is found [m].
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
         found_spacing_m: A carried object's found pairs take points along its edges (and
@@ -143,6 +148,7 @@ class CollisionCfg:
     found: str = "penalty"
     found_hard: str = "constraint"
     rounds: int = 3
+    restarts: int = 1
     audit_margin_m: float = 0.005
     audit_substeps: int = 3
     found_spacing_m: float = 0.04
@@ -176,6 +182,8 @@ class CollisionCfg:
             errors.append(("length_m", "must be > 0 m"))
         if not 0 <= self.rounds <= 20:
             errors.append(("rounds", "must be in 0 .. 20"))
+        if not 0 <= self.restarts <= 5:
+            errors.append(("restarts", "must be in 0 .. 5"))
         if not 0 <= self.audit_substeps <= 20:
             errors.append(("audit_substeps", "must be in 0 .. 20"))
         if not 0.0 <= self.audit_margin_m <= 0.1:

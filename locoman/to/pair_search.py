@@ -291,6 +291,8 @@ class Round:
         deepest_pair: The geoms of the closest pair (``a | b``; "" with none).
         demoted: Pairs promoted to (11) in this round whose solve ended infeasible, left out of the
             second attempt (:func:`search`).
+        restart: No check: the solve started again from the guess with every pair found
+            (the rounds before had left pairs missing or unfreed).
     """
 
     close_pairs: int
@@ -301,6 +303,7 @@ class Round:
     status: str = ""
     deepest_pair: str = ""
     demoted: int = 0
+    restart: bool = False
 
 
 # IPOPT's statuses for "no feasible point here": a round ending so with promotions is
@@ -316,27 +319,83 @@ def search(
     cfg: CollisionCfg,
 ) -> tuple[Trajectory, list[Round], list[ClosePair], list[ClosePair]]:
     """Check ``traj``, add the pairs it needs and solve on from it, at most ``cfg.rounds``
-    times. Returns the last trajectory (its iterations and solve time those of every
-    round), the rounds, the close pairs the problem still lacks pairs for after the last
-    check (empty: the solution needs none it lacks) and those still deeper than
-    ``cfg.unfreed_m``, modelled or not (the rounds could not free them); with ``found``
-    off, no rounds or a failed ``traj``: ``traj``.
+    times (:func:`_rounds`); if pairs are left missing or unfreed, solve again from Sec.
+    IV-C.2's guess with every pair found so far and go on with the rounds from there, at
+    most ``cfg.restarts`` times. Returns the last trajectory (its iterations and solve time
+    those of every solve), the rounds, the close pairs the problem still lacks pairs for
+    after the last check (empty: the solution needs none it lacks) and those still deeper
+    than ``cfg.unfreed_m``, modelled or not; with ``found`` off, no rounds or a failed
+    ``traj``: ``traj``.
 
-    A round whose solve ends infeasible (:data:`INFEASIBLE`) with pairs promoted to (11) is
-    solved again without the promotions (their pairs keep the penalty (12) they joined
-    with), and no later round promotes: (11) on a pair that keeps coming back can leave no
-    feasible point near the previous optimum (S1: an elbow held out of the shelf while the
-    hand holds the basket). Another failure is not retried: a solve that ran out of
-    iterations would likely run out again (S2: 2 x 1000 iterations, 45 min). A round that
-    fails ends the search with that failure: a failed solve's point is no motion to check.
+    Why start again: pairs that join a solution already through an object can hold it in
+    a local minimum that they cannot free. S1 without the keyframes' warm start: the first
+    solve, without the wrist's pairs against the basket, reaches under the basket's floor;
+    once found, the floor's pair pushes the wrist down into the shelf and the shelf's pair
+    pushes it up (two rounds, 30 mm deep at the end). Present from the first iteration,
+    the same pairs keep the reach out from the start. A failed solve ends the search with
+    that failure: its point is no motion to check.
     """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
     totals = _Totals(traj)
     if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
         return traj, rounds, [], []  # a failed solve is no solution to check
+    promote, restarts = cfg.found_hard, 0
+    while True:
+        traj, remaining, unfreed, promote = _rounds(
+            optimizer, traj, model, scene, cfg, pairs, rounds, totals, promote
+        )
+        if not (remaining or unfreed) or not traj.success or restarts == cfg.restarts:
+            return totals.of(traj), rounds, remaining, unfreed
+        restarts += 1
+        print(
+            f"[solve] restart {restarts}: {len(remaining)} pairs missing, {len(unfreed)} "
+            f"unfreed; solving again from the guess with the {len(pairs)} pairs",
+            flush=True,
+        )
+        tic = time.perf_counter()
+        traj = optimizer.solve(pairs=pairs)
+        rounds.append(
+            Round(
+                0,
+                0.0,
+                0,
+                traj.iterations,
+                time.perf_counter() - tic,
+                traj.status,
+                restart=True,
+            )
+        )
+        totals.add(traj)
+        if not traj.success:
+            return totals.of(traj), rounds, [], []
+
+
+def _rounds(
+    optimizer: TrajectoryOptimizer,
+    traj: Trajectory,
+    model: mujoco.MjModel,
+    scene: Scene,
+    cfg: CollisionCfg,
+    pairs: list[CollisionPair],
+    rounds: list[Round],
+    totals: _Totals,
+    promote: str,
+) -> tuple[Trajectory, list[ClosePair], list[ClosePair], str]:
+    """At most ``cfg.rounds`` rounds from ``traj`` (a successful solve): check it, add the
+    pairs it needs to ``pairs`` and solve on from its primal-dual point. Appends to
+    ``rounds`` and ``totals``. Returns the last trajectory, the close pairs still
+    unmodelled and those deeper than ``cfg.unfreed_m`` at its check, and whether a later
+    round may still promote (``promote``: ``cfg.found_hard`` or ``off``).
+
+    A round whose solve ends infeasible (:data:`INFEASIBLE`) with pairs promoted to (11) is
+    solved again without the promotions (their pairs keep the penalty (12) they joined
+    with), and no later round promotes: (11) on a pair that keeps coming back can leave no
+    feasible point near the previous optimum (S1: an elbow held out of the shelf while the
+    hand holds the basket). Another failure is not retried: a solve that ran out of
+    iterations would likely run out again (S2: 2 x 1000 iterations, 45 min).
+    """
     names = scene.names
-    promote = cfg.found_hard
     after = 0
     while True:
         arrays = trajectory_arrays(traj, names)
@@ -350,7 +409,7 @@ def search(
             rounds.append(_round(close, deepest, []))
             unmodelled = [c for c in close if found_pairs([c], pairs, scene)]
             unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
-            return totals.of(traj), rounds, unmodelled, unfreed
+            return traj, unmodelled, unfreed, promote
         after += 1
         print(
             f"[solve] round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
@@ -374,13 +433,13 @@ def search(
             new = [p for p in new if p.kind != PROMOTED]
             solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
             iterations += solved.iterations
-        pairs += new
+        pairs.extend(new)
         seconds = time.perf_counter() - tic
         rounds.append(_round(close, deepest, new, solved, seconds, iterations, demoted))
         totals.add(solved)
         traj = solved
         if not traj.success:
-            return totals.of(traj), rounds, [], []
+            return traj, [], [], promote
 
 
 def _mm(pair: ClosePair | None) -> str:

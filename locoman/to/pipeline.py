@@ -366,6 +366,7 @@ def write_solution(
             "collision_pairs": traj.collision_pairs,
             "collision_rounds": [dataclasses.asdict(r) for r in rounds],
             "pairs_found": sum(r.pairs_added for r in rounds),
+            "restarts": sum(r.restart for r in rounds),
             "pairs_missing": sorted({c.label for c in remaining}),
             "pairs_unfreed": sorted({c.label for c in unfreed}),
             "function_time_s": traj.function_time_s,
