@@ -331,9 +331,10 @@ def search(
     a local minimum that they cannot free. S1 without the keyframes' warm start: the first
     solve, without the wrist's pairs against the basket, reaches under the basket's floor;
     once found, the floor's pair pushes the wrist down into the shelf and the shelf's pair
-    pushes it up (two rounds, 30 mm deep at the end). Present from the first iteration,
-    the same pairs keep the reach out from the start. A failed solve ends the search with
-    that failure: its point is no motion to check.
+    pushes it up (three rounds, 30 mm deep at the end). Present from the first iteration,
+    the same pairs kept the reach out in three of the six S1 Fig. 6 cells that ended so
+    (docs/figures.md). A failed solve ends the search with that failure: its point is no
+    motion to check.
     """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
