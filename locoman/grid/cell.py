@@ -278,7 +278,7 @@ def _solve(
         "collision_rounds": sum(r["pairs_added"] > 0 for r in solved["collision_rounds"]),
         "pairs_found": solved["pairs_found"],
         # Solves started again from the guess with the pairs found (CollisionCfg.restarts).
-        "restarts": sum(r.get("restart", False) for r in solved["collision_rounds"]),
+        "restarts": solved["restarts"],
     }
 
 

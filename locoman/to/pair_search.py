@@ -356,17 +356,9 @@ def search(
         )
         tic = time.perf_counter()
         traj = optimizer.solve(pairs=pairs)
-        rounds.append(
-            Round(
-                0,
-                0.0,
-                0,
-                traj.iterations,
-                time.perf_counter() - tic,
-                traj.status,
-                restart=True,
-            )
-        )
+        seconds = time.perf_counter() - tic
+        solved = _round([], None, [], traj, seconds, traj.iterations)
+        rounds.append(dataclasses.replace(solved, restart=True))
         totals.add(traj)
         if not traj.success:
             return totals.of(traj), rounds, [], []
