@@ -8,7 +8,8 @@ import dataclasses
 
 from locoman.to.inputs import Keyframe, TOInputs
 from locoman.to.schedule import Schedule
-from locoman.to.supports import OnObject, Support
+from locoman.to.seats import Seat, seat_on
+from locoman.to.supports import OnObject, Support, Surface
 
 # A surface up to this high is the floor: an object resting on it is in the feet's way
 # (the ``feet_object`` kind) [m].
@@ -23,10 +24,13 @@ class ObjectMode:
         active: Simulated: its variables are free and obey (1). An inactive object rests
             where the scene put it.
         support: What it rests on (:mod:`locoman.to.supports`); None while carried.
+        seat: Where a fixed surface above the floor holds it (:mod:`locoman.to.seats`):
+            its bottom boxes reach down through the support there; None elsewhere.
     """
 
     active: bool
     support: Support | None
+    seat: Seat | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,6 +101,24 @@ def supports_per_node(
     return out
 
 
+def seats_per_node(inputs: TOInputs, schedule: Schedule, supports) -> list[list[Seat | None]]:
+    """Per node, each object's seat on a fixed surface above the floor (None: on the
+    floor, on another object, carried): where the scene has it until a subtask carries it,
+    then where its ``place`` keyframe sets it down."""
+    rest = list(inputs.object_starts)
+    out = []
+    for n in range(schedule.nodes):
+        kf = inputs.keyframes[schedule.phase(n).subtask]
+        row = []
+        for j, (support, height) in enumerate(supports[n]):
+            if n > 0 and supports[n - 1][j][0] is None and support is not None:
+                rest[j] = kf.object_poses[j]
+            elevated = isinstance(support, Surface) and height > FLOOR_HEIGHT_MAX
+            row.append(seat_on(rest[j], inputs.obstacles, height) if elevated else None)
+        out.append(row)
+    return out
+
+
 def active_from(inputs: TOInputs, schedule: Schedule, supports) -> list[int]:
     """Per object, the first node at which it is simulated: a hand touches it, or it rests
     on, or carries, a simulated object (the trolley once the box is set on it); never:
@@ -134,6 +156,7 @@ def node_modes(inputs: TOInputs, schedule: Schedule) -> list[NodeMode]:
     """The contact mode of every node."""
     supports = supports_per_node(inputs, schedule)
     first = active_from(inputs, schedule, supports)
+    seats = seats_per_node(inputs, schedule, supports)
     modes = []
     for n in range(schedule.nodes):
         phase = schedule.phase(n)
@@ -145,7 +168,8 @@ def node_modes(inputs: TOInputs, schedule: Schedule) -> list[NodeMode]:
             for on, down in zip(phase.feet_raised, phase.feet, strict=True)
         )
         objects = tuple(
-            ObjectMode(n >= first[j], supports[n][j][0]) for j in range(len(inputs.objects))
+            ObjectMode(n >= first[j], supports[n][j][0], seats[n][j])
+            for j in range(len(inputs.objects))
         )
         underfoot = tuple(
             j

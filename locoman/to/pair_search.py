@@ -31,6 +31,7 @@ from locoman.to.collision import (
 )
 from locoman.to.layout import ObjectModel
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
+from locoman.to.seats import Seat, seated_boxes
 from locoman.to.spheres import RobotSphere, foot_spheres, link_sphere_list
 from locoman.to.transcription import (
     CollisionPair,
@@ -62,14 +63,11 @@ def robot_spheres(link: str, frames: ContactFrames) -> list[RobotSphere]:
     return link_sphere_list(link)
 
 
-def _nearest_box(obj: ObjectModel, pose: np.ndarray, point: np.ndarray) -> int:
-    """The index of ``obj``'s collision box (:func:`object_boxes`) nearest ``point``
-    [m, world], the object at ``pose`` (p, rpy)."""
+def _nearest_box(boxes: list, pose: np.ndarray, point: np.ndarray) -> int:
+    """The index of the collision box (centre, half sizes in the object's frame [m]) of
+    ``boxes`` nearest ``point`` [m, world], the object at ``pose`` (p, rpy)."""
     local = rpy_to_matrix(pose[3:6]).T @ (point - pose[:3])
-    gaps = [
-        np.linalg.norm(np.maximum(np.abs(local - centre) - half, 0.0))
-        for centre, half in object_boxes(obj)
-    ]
+    gaps = [np.linalg.norm(np.maximum(np.abs(local - c) - h, 0.0)) for c, h in boxes]
     return int(np.argmin(gaps))
 
 
@@ -78,8 +76,9 @@ class Scene:
     """What the search maps MuJoCo's bodies to: the TO's objects (in its order) with their
     poses along the solution, the fixed objects' boxes, the robot's frames, and the
     solution's contact schedule (:func:`trajectory_arrays`; None: touching allowed
-    nowhere), and how far apart the points along a carried object's edges lie [m]
-    (:attr:`CollisionCfg.found_spacing_m`)."""
+    nowhere), how far apart the points along a carried object's edges lie [m]
+    (:attr:`CollisionCfg.found_spacing_m`), and per node each object's seat on a fixed
+    support (:mod:`locoman.to.seats`; empty: none anywhere)."""
 
     objects: tuple[ObjectModel, ...]
     object_q: np.ndarray  # (N, M, 6)
@@ -87,6 +86,12 @@ class Scene:
     frames: ContactFrames
     schedule: dict[str, np.ndarray] | None = None
     spacing_m: float = 0.04
+    seats: tuple[tuple[Seat | None, ...], ...] = ()
+
+    def boxes(self, k: int, j: int) -> list:
+        """Object j's collision boxes at node k, as the TO has them there."""
+        seat = self.seats[k][j] if self.seats else None
+        return seated_boxes(object_boxes(self.objects[j]), seat)
 
     def holding_wrist(self, k: int, link: str, j: int) -> bool:
         """``link`` is a wrist link (:data:`WRIST_LINKS`) of a hand that holds object j at
@@ -125,9 +130,10 @@ def _object_side(
     if other.kind != "object":
         return []
     i = scene.names.index(other.name)
-    a = _nearest_box(obj, scene.object_q[k, j], point)
-    b = _nearest_box(scene.objects[i], scene.object_q[k, i], point)
-    (own_centre, own_half), (centre, half) = object_boxes(obj)[a], object_boxes(scene.objects[i])[b]
+    own_boxes, their_boxes = scene.boxes(k, j), scene.boxes(k, i)
+    a = _nearest_box(own_boxes, scene.object_q[k, j], point)
+    b = _nearest_box(their_boxes, scene.object_q[k, i], point)
+    (own_centre, own_half), (centre, half) = own_boxes[a], their_boxes[b]
     points = box_edge_points(own_centre, own_half, scene.spacing_m)
     rim = Obstacle("rim", centre, 0.0, half)
     spacing = min(scene.spacing_m, float(min(own_half)))
@@ -160,8 +166,8 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
             ]
         if b.kind == "object":
             j = scene.names.index(b.name)
-            boxes = object_boxes(scene.objects[j])
-            i = _nearest_box(scene.objects[j], scene.object_q[k, j], close.point)
+            boxes = scene.boxes(k, j)
+            i = _nearest_box(boxes, scene.object_q[k, j], close.point)
             touching = scene.holding_wrist(k, a.name, j)
             return list(
                 sphere_box_pairs(

@@ -272,7 +272,8 @@ def solve_scenario(
     optimizer = build_optimizer(inputs, cfg)
     traj = optimizer.solve()
     obstacles = {o.name: o for o in inputs.obstacles}
-    scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames())
+    seats = tuple(tuple(m.seat for m in mode.objects) for mode in optimizer.modes)
+    scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames(), seats=seats)
     model = load_scene_model(scene_dir)
     traj, rounds, remaining, unfreed = search(optimizer, traj, model, scene, cfg.collision)
     if (remaining or unfreed) and traj.success:

@@ -41,6 +41,7 @@ from locoman.to.collision import (
 from locoman.to.costs import CostWeights
 from locoman.to.layout import FEET, HANDS, KINEMATICS, N_KIN, NodeLayout, ObjectModel
 from locoman.to.modes import NodeMode
+from locoman.to.seats import seated_boxes
 from locoman.to.spheres import (
     ELBOW_LINKS,
     FOREARM_LINKS,
@@ -326,9 +327,9 @@ def node_collision_pairs(
 ) -> Iterator[CollisionPair]:
     """The collision pairs at node k, each of a kind that is not ``off``: the trunk's body
     points, the legs' and the feet's spheres and the arms not touching it against each
-    object's boxes; each carried object's corners against the obstacles and the other
-    objects' boxes, and their edges against it; the palms, forearms and feet against the
-    obstacles."""
+    object's boxes (reaching down through a fixed support: :mod:`locoman.to.seats`); each
+    carried object's corners against the obstacles and the other objects' boxes, and their
+    edges against it; the palms, forearms and feet against the obstacles."""
     body = body_point_spheres()
     legs = [s for link in LEG_LINKS for s in link_sphere_list(link)]
     palms = [palm_spheres(frames, i) for i in range(2)]
@@ -338,7 +339,7 @@ def node_collision_pairs(
     on = {kind for kind in ("object_body", "hands_object", "legs_object", "feet_object")}
     on = {kind for kind in on if getattr(cfg, kind) != "off"}
     for j, obj in enumerate(objects):
-        boxes = [_object_box(obj)] if obj.solid else _boxes(obj, obj.parts)
+        boxes = seated_boxes(object_boxes(obj), mode.objects[j].seat)
         under = boxes if obj.solid else _boxes(obj, obj.wheels or obj.parts)
         name = obj.name
         if "object_body" in on:
