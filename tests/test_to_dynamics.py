@@ -12,6 +12,7 @@ from locoman.to.contacts import (
     newton_third_law,
     no_rolling,
     patch_contact,
+    sinking_bound,
 )
 from locoman.to.dynamics import (
     configuration_step,
@@ -183,3 +184,20 @@ def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
     np.testing.assert_allclose(sol.value(fg)[2, :-1], 2 * MASS * 9.81, rtol=2e-3)
     np.testing.assert_allclose(sol.value(fb)[2, :-1], MASS * 9.81, rtol=2e-3)
     np.testing.assert_allclose(sol.value(fa)[:, :-1], -sol.value(fb)[:, :-1], atol=1e-9)
+
+
+@pytest.mark.parametrize("bounded", [False, True])
+def test_a_sole_rising_at_touchdown_sinks_by_its_velocity_unless_its_depth_is_bounded(bounded):
+    """issue 48: (2a) puts r_z - z_g at -s - r_dot_z / k_z; with |s| <= 4 mm a sole moving up
+    at 0.15 m/s (k_z = 50/s) reaches 7 mm below its surface, the S1 step-up's failure. The
+    sinking bound holds the point itself within 4 mm."""
+    opti = ca.Opti()
+    r, r_dot, slack = opti.variable(3), opti.variable(3), opti.variable()
+    opti.subject_to(patch_contact(r, r_dot, ca.DM.eye(3), 0.2, 50.0, slack) == 0)
+    opti.subject_to(opti.bounded(-0.004, slack, 0.004))
+    opti.subject_to(r_dot[2] == 0.15)
+    if bounded:
+        opti.subject_to(sinking_bound(r, 0.2, 0.004) >= 0)
+    opti.minimize(r[2] + 1e-3 * ca.sumsqr(r_dot[0:2]))
+    depth = 0.2 - _solve(opti).value(r[2])  # [m] below the surface
+    assert depth == pytest.approx(0.004 if bounded else 0.007, abs=1e-6)

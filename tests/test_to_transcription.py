@@ -492,3 +492,27 @@ def test_a_pair_between_two_nodes_sees_the_spheres_at_the_configuration_there():
         - np.asarray(spheres(np.r_[q1, np.zeros(n_c)], [])[0]).reshape(-1, 3)
     )
     assert np.abs(centres - chord).max() > 0.005  # the arc, not the chord
+
+
+@pytest.mark.parametrize("slack_max_m", [0.004, None])
+def test_a_standing_sole_sinks_no_deeper_than_the_slack_bound(slack_max_m):
+    """issue 48: with (2a)'s slack bounded, r_dot_z / k_z still let a sole sit 7 mm in the box
+    it stepped on; every standing foot at node k + 1 gets r_z - z_g + d_max >= 0, d_max the
+    slack bound (none where the slack is free)."""
+    standing = NodeMode((True, True), (None, None), ())
+    numbers = Numbers(CostWeights(), ContactCfg(slack_max_m=slack_max_m), NO_SELF, (), ())
+    layout = NodeLayout.of(0)
+    P = np.zeros((layout.n_params, 3))
+    P[layout.parameters["foot_surface_z"], :] = 0.3  # on a step 30 cm high
+    tr = transcribe([standing] * 3, P, numbers, g1_terms())
+    blocks = [b for b in tr.blocks if b.term.name == "sole_depth"]
+    if slack_max_m is None:
+        assert not blocks
+        return
+    (block,) = blocks
+    assert block.calls == 4  # two feet at nodes 1 and 2; node 0 is the initial state
+    np.testing.assert_allclose(block.p, [[0.3, 0.004]] * 4)
+    depth = block.term.function
+    for z, inside in ((0.3 - 0.007, False), (0.3 - 0.003, True), (0.31, True)):
+        value = float(depth([0.0, 0.0, z], [0.3, 0.004])[0])
+        assert (value >= 0.0) == inside

@@ -45,6 +45,16 @@ def patch_contact(
     )
 
 
+def sinking_bound(r: ca.SX, surface_z: float, depth_max: float) -> ca.SX:
+    """Inequality (>= 0) of a patch on a surface at ``surface_z`` [m]: its point sinks no
+    deeper than ``depth_max`` [m], (r_z - z_g) + d_max >= 0.
+
+    (2a)'s stabilised form puts (r_z - z_g) at -s_z - r_dot_z / k_z: with s_z bounded, a
+    sole still moving at touchdown sat 7 mm in the box it stepped on (S1's Fig. 6, both
+    slacks at their 4 mm bound). The distance itself needs the bound."""
+    return r[2] - surface_z + depth_max
+
+
 def no_rolling(omega: ca.SX) -> ca.SX:
     """(2d) omega_xy = 0: a body on a surface does not start to rotate into it.
 

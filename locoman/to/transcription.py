@@ -60,6 +60,7 @@ from locoman.to.terms.contacts import (
     foot_patch_kind,
     hand_contact_kind,
     object_face_cone_kind,
+    sole_depth_kind,
 )
 from locoman.to.terms.costs import (
     REGULARIZATION_WEIGHTS,
@@ -729,6 +730,7 @@ def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par)
 def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, opar) -> None:
     """The contacts of node k + 1: feet, hands, supports."""
     k_z = numbers.contact.stiffness
+    depth_max = numbers.contact.slack_max_m  # a sole sinks no deeper than its slack may
     palm_radius = float(robot.frames.palm_radius)
     for k in range(len(modes) - 1):
         m, m1, k1 = modes[k], modes[k + 1], k + 1
@@ -747,8 +749,11 @@ def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par,
                 if onset == "touchdown"
                 else {"r_before": at.foot(k, i, "r")}
             )
-            p = {"surface_z": P[par["foot_surface_z"], k1][i], "k_z": k_z}
-            b.own(foot_patch_kind(onset)).add(x, p)
+            surface_z = P[par["foot_surface_z"], k1][i]
+            b.own(foot_patch_kind(onset)).add(x, {"surface_z": surface_z, "k_z": k_z})
+            if depth_max is not None:
+                p = {"surface_z": surface_z, "depth_max": depth_max}
+                b.own(sole_depth_kind()).add({"r": x["r"]}, p)
         for i in range(2):
             j = m1.hands[i]
             if j is None:

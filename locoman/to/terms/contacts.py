@@ -2,7 +2,8 @@
 :mod:`locoman.to.contacts`:
 
 - a foot's patch contact (2a)-(2c) at node k + 1, at touchdown with (2d), or going on, (2b)
-  then over the step (:func:`foot_patch_kind`);
+  then over the step (:func:`foot_patch_kind`), and how deep its sole may sink
+  (:func:`sole_depth_kind`);
 - a hand's interactive contact (4), (5a), (5b) with the object it touches, at the first touch
   or going on (:func:`hand_contact_kind`);
 - the friction cone and CoP (3) of a foot on its surface (:func:`foot_cone_kind`) and of a
@@ -16,7 +17,13 @@ import functools
 
 import casadi as ca
 
-from locoman.to.contacts import friction_cone_cop, interactive_contact, no_rolling, patch_contact
+from locoman.to.contacts import (
+    friction_cone_cop,
+    interactive_contact,
+    no_rolling,
+    patch_contact,
+    sinking_bound,
+)
 from locoman.to.kinematics import euler_rates_to_world, rpy_matrix
 from locoman.to.terms import Rows, TermKind, term_kind
 
@@ -48,6 +55,17 @@ def foot_patch_kind(onset: str) -> TermKind:
         return Rows(equalities=rows)
 
     return term_kind(f"foot_patch_{onset}", x_slots, {"surface_z": 1, "k_z": 1}, body)
+
+
+@functools.cache
+def sole_depth_kind() -> TermKind:
+    """A sole's centre r no deeper than ``depth_max`` [m] below its surface at ``surface_z``
+    [m] (:func:`locoman.to.contacts.sinking_bound`), beside (2a) at every node it stands."""
+
+    def body(x, p) -> Rows:
+        return Rows(inequalities=[sinking_bound(x["r"], p["surface_z"], p["depth_max"])])
+
+    return term_kind("sole_depth", {"r": 3}, {"surface_z": 1, "depth_max": 1}, body)
 
 
 def object_face(q_object: ca.SX, point: ca.SX, face: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -24,6 +24,7 @@ from locoman.to.terms.contacts import (
     foot_patch_kind,
     hand_contact_kind,
     object_face_cone_kind,
+    sole_depth_kind,
 )
 from locoman.to.terms.costs import (
     keyframe_base_kind,
@@ -89,7 +90,7 @@ def generic_kinds() -> list[TermKind]:
     kinds += [wrench_kind(at, about) for at, about in (("point", "point"), ("object", "point"))]
     kinds += [wrench_kind("point", "object")]
     kinds += [foot_patch_kind(o) for o in ONSETS] + [hand_contact_kind(o) for o in ONSETS]
-    kinds += [foot_cone_kind(), object_face_cone_kind()]
+    kinds += [sole_depth_kind(), foot_cone_kind(), object_face_cone_kind()]
     for support in SUPPORT_KINDS:
         kinds += [support_contact_kind(support, o) for o in ONSETS]
         kinds.append(support_wrench_kind(support))
