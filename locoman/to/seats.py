@@ -63,18 +63,14 @@ def seat_on(pose: np.ndarray, obstacles: tuple[Obstacle, ...], height: float) ->
         top = obstacle.centre[2] + obstacle.half_extents[2]
         if abs(top - height) > _HEIGHT_TOL_M:
             continue
-        c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
-        offset = bottom[:2] - obstacle.centre[:2]
-        local = np.array([c * offset[0] + s * offset[1], -s * offset[0] + c * offset[1]])
+        local = _in_frame(bottom[:2] - obstacle.centre[:2], obstacle.yaw)
         if np.any(np.abs(local) > obstacle.half_extents[:2]):
             continue
         turn = obstacle.yaw - yaw
         quarter = round(turn / (math.pi / 2))
         if abs(turn - quarter * math.pi / 2) > _ALIGNED_TOL_RAD:
             return None
-        c, s = math.cos(yaw), math.sin(yaw)
-        offset = obstacle.centre[:2] - bottom[:2]
-        centre = (c * offset[0] + s * offset[1], -s * offset[0] + c * offset[1])
+        centre = _in_frame(obstacle.centre[:2] - bottom[:2], yaw)
         half = obstacle.half_extents[:2] if quarter % 2 == 0 else obstacle.half_extents[1::-1]
         return Seat(
             (float(centre[0]), float(centre[1])),
@@ -82,6 +78,12 @@ def seat_on(pose: np.ndarray, obstacles: tuple[Obstacle, ...], height: float) ->
             float(2.0 * obstacle.half_extents[2]),
         )
     return None
+
+
+def _in_frame(offset: np.ndarray, yaw: float) -> np.ndarray:
+    """A world xy ``offset`` [m] in a frame turned by ``yaw`` [rad] about z."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([c * offset[0] + s * offset[1], -s * offset[0] + c * offset[1]])
 
 
 def _pieces(low: float, high: float, seat_low: float, seat_high: float) -> list:
