@@ -730,7 +730,8 @@ def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par)
 def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, opar) -> None:
     """The contacts of node k + 1: feet, hands, supports."""
     k_z = numbers.contact.stiffness
-    depth_max = numbers.contact.slack_max_m  # a sole sinks no deeper than its slack may
+    # A landing sole sinks no deeper than its slack may (sole_depth_kind: why touchdown).
+    depth_max = numbers.contact.slack_max_m
     palm_radius = float(robot.frames.palm_radius)
     for k in range(len(modes) - 1):
         m, m1, k1 = modes[k], modes[k + 1], k + 1
@@ -751,7 +752,7 @@ def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par,
             )
             surface_z = P[par["foot_surface_z"], k1][i]
             b.own(foot_patch_kind(onset)).add(x, {"surface_z": surface_z, "k_z": k_z})
-            if depth_max is not None:
+            if depth_max is not None and onset == "touchdown":
                 p = {"surface_z": surface_z, "depth_max": depth_max}
                 b.own(sole_depth_kind()).add({"r": x["r"]}, p)
         for i in range(2):

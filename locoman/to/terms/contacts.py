@@ -2,7 +2,7 @@
 :mod:`locoman.to.contacts`:
 
 - a foot's patch contact (2a)-(2c) at node k + 1, at touchdown with (2d), or going on, (2b)
-  then over the step (:func:`foot_patch_kind`), and how deep its sole may sink
+  then over the step (:func:`foot_patch_kind`), and how deep a landing sole may sink
   (:func:`sole_depth_kind`);
 - a hand's interactive contact (4), (5a), (5b) with the object it touches, at the first touch
   or going on (:func:`hand_contact_kind`);
@@ -60,7 +60,11 @@ def foot_patch_kind(onset: str) -> TermKind:
 @functools.cache
 def sole_depth_kind() -> TermKind:
     """A sole's centre r no deeper than ``depth_max`` [m] below its surface at ``surface_z``
-    [m] (:func:`locoman.to.contacts.sinking_bound`), beside (2a) at every node it stands."""
+    [m] (:func:`locoman.to.contacts.sinking_bound`), beside (2a) where it lands.
+
+    Only at touchdown, where the sole still moves: held, r_dot_z is about 0 and (2a) bounds
+    the depth by the slack already, and rows on every standing node cost S1 and S2 hundreds
+    of iterations (``docs/trajectory-optimisation.md``)."""
 
     def body(x, p) -> Rows:
         return Rows(inequalities=[sinking_bound(x["r"], p["surface_z"], p["depth_max"])])
