@@ -184,16 +184,8 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
 
 
 def _key(pair: CollisionPair) -> tuple:
-    """What makes two pairs the same, whatever their kind: where, the geometry, the spheres
-    (either way round), the objects and the numbers. Not the label: a hand's pairs against
-    the trolley's handle frame were labelled like those against its platform (both
-    ``trolley/0``), so once it had the platform's, the frame's never joined."""
-    spheres = tuple(sorted(s.name for s in (pair.sphere, pair.other) if s is not None))
-    numbers = tuple(
-        (name, tuple(np.round(np.ravel(value), 9))) for name, value in sorted(pair.numbers.items())
-    )
-    where = (pair.node, round(pair.fraction, 6))
-    return (*where, pair.geometry, spheres, pair.obj, pair.box_obj, numbers)
+    """What makes two pairs the same: :attr:`CollisionPair.identity`."""
+    return pair.identity
 
 
 def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[CollisionPair]:
@@ -227,10 +219,21 @@ def found_pairs(
     out = []
     for c in close:
         for pair in candidates(c, scene, around):
-            if _key(pair) not in known:
-                known.add(_key(pair))
+            key = _key(pair)
+            if key not in known:
+                known.add(key)
                 out.append(pair)
     return out
+
+
+def unmodelled(
+    close: list[ClosePair], existing: list[CollisionPair], scene: Scene
+) -> list[ClosePair]:
+    """Those of ``close`` that ``existing`` lacks a :func:`candidates` pair of (each has
+    :func:`found_pairs`), with ``existing``'s keys made once: per close pair they took
+    minutes on a check with thousands of pairs."""
+    known = {_key(p) for p in existing}
+    return [c for c in close if any(_key(p) not in known for p in candidates(c, scene))]
 
 
 def promoted_pairs(
@@ -246,11 +249,12 @@ def promoted_pairs(
         if c.distance >= 0.0:
             continue
         pairs = candidates(c, scene, around)
-        if any(_key(p) not in known for p in pairs):
+        keys = [_key(p) for p in pairs]
+        if any(key not in known for key in keys):
             continue  # not all modelled yet: found_pairs adds them first
-        for pair in pairs:
-            if _key(pair) not in promoted:
-                promoted.add(_key(pair))
+        for pair, key in zip(pairs, keys, strict=True):
+            if key not in promoted:
+                promoted.add(key)
                 out.append(dataclasses.replace(pair, kind=PROMOTED))
     return out
 
@@ -406,9 +410,8 @@ def _rounds(
         new = round_pairs(close, pairs, scene, dataclasses.replace(cfg, found_hard=promote))
         if not new or after == cfg.rounds:
             rounds.append(_round(close, deepest, []))
-            unmodelled = [c for c in close if found_pairs([c], pairs, scene)]
             unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
-            return traj, unmodelled, unfreed, promote
+            return traj, unmodelled(close, pairs, scene), unfreed, promote
         after += 1
         print(
             f"[solve] round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "

@@ -21,6 +21,7 @@ node's mode, L_reg, the slacks, (9), (10) and the objects' goals, and the collis
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Iterator
 
@@ -121,6 +122,21 @@ class CollisionPair:
     touching: bool = False
     fraction: float = 0.0
     label: str = ""
+
+    @functools.cached_property
+    def identity(self) -> tuple:
+        """What makes two pairs the same, whatever their kind: where, the geometry, the
+        spheres (either way round), the objects and the numbers (to 1e-9). Not the label: a
+        hand's pairs against the trolley's handle frame were labelled like those against its
+        platform (both ``trolley/0``), so once it had the platform's, the frame's never
+        joined. Made once per pair: a round of found pairs compares thousands of them."""
+        spheres = tuple(sorted(s.name for s in (self.sphere, self.other) if s is not None))
+        numbers = tuple(
+            (name, tuple(round(x, 9) for x in np.ravel(value).tolist()))
+            for name, value in sorted(self.numbers.items())
+        )
+        where = (self.node, round(self.fraction, 6))
+        return (*where, self.geometry, spheres, self.obj, self.box_obj, numbers)
 
 
 @dataclasses.dataclass(frozen=True)
