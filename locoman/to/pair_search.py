@@ -183,11 +183,6 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
     return []
 
 
-def _key(pair: CollisionPair) -> tuple:
-    """What makes two pairs the same: :attr:`CollisionPair.identity`."""
-    return pair.identity
-
-
 def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[CollisionPair]:
     """The pairs that keep ``close``'s bodies apart: at its node and ``around`` nodes either
     side (the next node too, for a pose between two, and that pose itself: a hand through a
@@ -215,13 +210,12 @@ def found_pairs(
     close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int = 1
 ) -> list[CollisionPair]:
     """The :func:`candidates` of each of ``close`` that ``existing`` lacks, once each."""
-    known = {_key(p) for p in existing}
+    known = {p.identity for p in existing}
     out = []
     for c in close:
         for pair in candidates(c, scene, around):
-            key = _key(pair)
-            if key not in known:
-                known.add(key)
+            if pair.identity not in known:
+                known.add(pair.identity)
                 out.append(pair)
     return out
 
@@ -232,8 +226,8 @@ def unmodelled(
     """Those of ``close`` that ``existing`` lacks a :func:`candidates` pair of (each has
     :func:`found_pairs`), with ``existing``'s keys made once: per close pair they took
     minutes on a check with thousands of pairs."""
-    known = {_key(p) for p in existing}
-    return [c for c in close if any(_key(p) not in known for p in candidates(c, scene))]
+    known = {p.identity for p in existing}
+    return [c for c in close if any(p.identity not in known for p in candidates(c, scene))]
 
 
 def promoted_pairs(
@@ -242,19 +236,18 @@ def promoted_pairs(
     """The pairs that keep coming back: for each of ``close`` that penetrates although the
     problem has its pairs already, those pairs again as ``PROMOTED`` (the hard (11) by
     default), once each, where ``existing`` does not have them so yet."""
-    promoted = {_key(p) for p in existing if p.kind == PROMOTED}
-    known = {_key(p) for p in existing}
+    promoted = {p.identity for p in existing if p.kind == PROMOTED}
+    known = {p.identity for p in existing}
     out = []
     for c in close:
         if c.distance >= 0.0:
             continue
         pairs = candidates(c, scene, around)
-        keys = [_key(p) for p in pairs]
-        if any(key not in known for key in keys):
+        if any(p.identity not in known for p in pairs):
             continue  # not all modelled yet: found_pairs adds them first
-        for pair, key in zip(pairs, keys, strict=True):
-            if key not in promoted:
-                promoted.add(key)
+        for pair in pairs:
+            if pair.identity not in promoted:
+                promoted.add(pair.identity)
                 out.append(dataclasses.replace(pair, kind=PROMOTED))
     return out
 
