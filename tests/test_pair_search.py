@@ -23,9 +23,13 @@ from locoman.to.collision import (
 from locoman.to.layout import ObjectModel
 from locoman.to.optimizer import Trajectory
 from locoman.to.pair_search import (
+    ARM_LINKS,
     FLOOR_BOX,
     PROMOTED,
+    WRIST_LINKS,
     Scene,
+    arm_nodes,
+    arm_pairs,
     found_pairs,
     pairs_for,
     promoted_pairs,
@@ -448,3 +452,95 @@ def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):
     scene_ = Scene((box, other), poses, {}, contact_frames(), schedule)
     close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
     assert {p.node for p in found_pairs([close], [], scene_)} == {1, 2}  # not 3
+
+
+def _open_box(scene, hand_object: np.ndarray) -> Scene:
+    """tiny's box as an open one of two parts (a floor and a wall) on its table, the left
+    hand's contact per node ``hand_object`` (N,), the right hand's none."""
+    _, objects = scene
+    parts = [
+        {"name": "floor", "pos": [0.0, 0.0, 0.01], "shape": "box", "size": [0.1, 0.1, 0.01]},
+        {"name": "wall", "pos": [0.09, 0.0, 0.1], "shape": "box", "size": [0.01, 0.1, 0.1]},
+    ]
+    spec = objects["box"] | {"kind": "basket", "primitives": parts}
+    box = ObjectModel.from_spec("box", spec)
+    schedule = _trajectory(np.tile(BOX_ON_TABLE, (NODES, 1)))
+    schedule["hand_object"][:, 0] = hand_object
+    return Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames(), schedule)
+
+
+def test_a_restart_keeps_the_found_arm_out_of_the_object_whole(scene):
+    """Issue 48 (S1's AllKeyframe, 2.5 kg, 1.2 rad: the rounds moved a palm from one basket
+    wall to the next, then to the shoulder): at a restart the palm found in one part brings
+    every link of its arm against every part, over the nodes its hand keeps its contact."""
+    scene_ = _open_box(scene, np.array([-1, -1, -1, 0]))  # the left hand holds from node 3
+    box = Body("object", "box", "box/wall")
+    palm = Body("robot", "right_rubber_hand", "right_rubber_hand#70")
+    pairs = arm_pairs([_close(palm, box)], [], scene_, around=10)
+    spheres = {p.sphere.name for p in pairs}
+    assert {s.split("/")[0] for s in spheres} == set(ARM_LINKS[1])  # shoulder to palm
+    assert {p.label.split(" | ")[1] for p in pairs} == {"box/0", "box/1"}  # every part
+    assert {p.node for p in pairs} == {1, 2, 3}  # the right hand never holds: +-10, not 0
+    assert len(pairs) == len(spheres) * 2 * 3
+    assert arm_pairs([_close(palm, box)], pairs, scene_, around=10) == []  # there already
+    assert {p.node for p in arm_pairs([_close(palm, box)], [], scene_, around=1)} == {1, 2, 3}
+    assert {p.node for p in arm_pairs([_close(palm, box, node=1)], [], scene_, 1)} == {1, 2}
+    # The left hand: up to where it takes hold (node 3), then the hold's own nodes, where
+    # its palm may touch the box and its wrist is kept out of it touching allowed.
+    left = Body("robot", "left_elbow_link", "left_elbow_link#40")
+    before = arm_pairs([_close(left, box, node=1)], [], scene_, around=10)
+    assert {p.node for p in before} == {1, 2}
+    held = arm_pairs([_close(left, box, node=3)], [], scene_, around=10)
+    assert {p.node for p in held} == {3}
+    assert not any(p.sphere.link == "left_rubber_hand" for p in held)
+    assert {p.sphere.link for p in held if p.touching} == set(WRIST_LINKS[0])
+    # Not an arm, or not against a body other than the robot: none.
+    assert arm_pairs([_close(KNEE, box)], [], scene_, around=10) == []
+    assert arm_pairs([_close(palm, KNEE)], [], scene_, around=10) == []
+
+
+def test_the_arm_nodes_are_the_run_of_the_hands_contact_never_node_0(scene):
+    scene_ = _open_box(scene, np.array([-1, 0, 0, -1]))
+    assert list(arm_nodes(scene_, 0, 0, 10)) == [1, 2]  # between nodes 0 and 1
+    assert list(arm_nodes(scene_, 2, 0, 10)) == [1, 2]
+    assert list(arm_nodes(scene_, 2, 0, 0)) == [2]
+    assert list(arm_nodes(scene_, 3, 0, 10)) == [3]
+    assert list(arm_nodes(scene_, 3, 1, 1)) == [2, 3]  # the right hand: +-1
+    free = dataclasses.replace(scene_, schedule=None)
+    assert list(arm_nodes(free, 2, 0, 10)) == [1, 2, 3]
+
+
+class _Kept(_Stuck):
+    """Moves nothing (:class:`_Stuck`) and keeps the pairs of each restart."""
+
+    def __init__(self, guess: Trajectory | None = None) -> None:
+        super().__init__(guess)
+        self.restart_pairs: list[list] = []
+
+    def solve(self, pairs, warm_start=None, hessian=None):
+        if warm_start is None:
+            self.restart_pairs.append(list(pairs))
+        return super().solve(pairs, warm_start, hessian)
+
+
+@pytest.mark.parametrize("around", [0, 10])
+def test_a_restart_solves_with_the_found_arm_whole(scene, around):
+    """The right palm 5 cm in the table, which no solve moves: the restart adds the whole
+    right arm against the table at every node (``restart_arm_nodes``; 0: none added)."""
+    model, _ = scene
+    q = np.tile(g1.standing_q35(), (NODES, 1))
+    q[1:, 6 + g1.G1_JOINT_NAMES.index("right_shoulder_pitch_joint")] = -0.3
+    q[1:, 6 + g1.G1_JOINT_NAMES.index("right_elbow_joint")] = 1.2
+    first = _solved(_trajectory(np.tile(BOX_ON_TABLE, (NODES, 1)), "surface", q))
+    solver = _Kept(guess=first)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=2, restarts=1, restart_arm_nodes=around)
+    _, rounds, _, unfreed = search(solver, first, model, _box_by_the_table(scene), cfg)
+    restart = next(r for r in rounds if r.restart)
+    links = {p.sphere.link for p in solver.restart_pairs[0] if "table" in p.label}
+    assert "right_rubber_hand" in links and unfreed
+    if around == 0:
+        assert restart.pairs_added == 0 and "right_shoulder_pitch_link" not in links
+    else:
+        assert restart.pairs_added > 0 and links == set(ARM_LINKS[1])
+        found = [p for p in solver.restart_pairs[0] if p.sphere.link == "right_shoulder_roll_link"]
+        assert {p.node for p in found} == {1, 2, 3}

@@ -104,6 +104,12 @@ class CollisionCfg:
             from Sec. IV-C.2's guess with every pair found so far (present from the first
             iteration, they keep the motion out of the minimum that held it), and the rounds
             go on from its solution; at most this many times (0: never).
+        restart_arm_nodes: A restart keeps each arm that the checks found against a body
+            (an object, a fixed object, the floor) out of it whole: every link from
+            shoulder to palm against every box of that body, at up to this many nodes
+            either side of where it was found while that hand's contact stays the same
+            (``pair_search.arm_pairs``); the rounds' pairs cover the one link and box, and
+            moved the penetration to the next. 0: the pairs found, as they are.
         audit_margin_m: A pair of bodies closer than this in the replay is found [m].
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
         found_spacing_m: A carried object's found pairs take points along its edges (and
@@ -149,6 +155,7 @@ class CollisionCfg:
     found_hard: str = "constraint"
     rounds: int = 3
     restarts: int = 1
+    restart_arm_nodes: int = 10
     audit_margin_m: float = 0.005
     audit_substeps: int = 3
     found_spacing_m: float = 0.04
@@ -184,6 +191,8 @@ class CollisionCfg:
             errors.append(("rounds", "must be in 0 .. 20"))
         if not 0 <= self.restarts <= 5:
             errors.append(("restarts", "must be in 0 .. 5"))
+        if self.restart_arm_nodes < 0:
+            errors.append(("restart_arm_nodes", "must be >= 0 (0: no arm widened)"))
         if not 0 <= self.audit_substeps <= 20:
             errors.append(("audit_substeps", "must be in 0 .. 20"))
         if not 0.0 <= self.audit_margin_m <= 0.1:

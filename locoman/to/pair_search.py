@@ -52,6 +52,26 @@ WRIST_LINKS = tuple(
     tuple(f"{side}_wrist_{joint}_link" for joint in ("roll", "pitch", "yaw"))
     for side in ("left", "right")
 )
+# Each arm's links, shoulder to palm. A restart keeps the whole arm out of what one of them
+# was found in: S1's AllKeyframe (2.5 kg, 1.2 rad) found the right palm in the basket's back
+# wall, then in its right wall, the shoulder in the shelf's top, each round's pairs pushing
+# the arm into the next link's or box's blind spot.
+ARM_LINKS = tuple(
+    tuple(
+        f"{side}_{link}"
+        for link in (
+            "shoulder_pitch_link",
+            "shoulder_roll_link",
+            "shoulder_yaw_link",
+            "elbow_link",
+            "wrist_roll_link",
+            "wrist_pitch_link",
+            "wrist_yaw_link",
+            "rubber_hand",
+        )
+    )
+    for side in ("left", "right")
+)
 # The floor as a box under it, for a link or a carried object that reaches it.
 FLOOR_BOX = Obstacle("floor", np.array([0.0, 0.0, -0.5]), 0.0, np.array([50.0, 50.0, 0.5]))
 
@@ -147,9 +167,12 @@ def _object_side(
     ]
 
 
-def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
+def pairs_for(
+    close: ClosePair, k: int, scene: Scene, every_box: bool = False
+) -> list[CollisionPair]:
     """The TO's pairs at node k that keep the two bodies of ``close`` apart (a holding
-    hand's wrist and the object it holds: out of it, touching allowed)."""
+    hand's wrist and the object it holds: out of it, touching allowed); a robot link against
+    an object: against its box nearest the contact, or with ``every_box`` each of them."""
     a, b = close.a, close.b
     if a.kind != ROBOT and b.kind == ROBOT:
         a, b = b, a
@@ -167,12 +190,11 @@ def pairs_for(close: ClosePair, k: int, scene: Scene) -> list[CollisionPair]:
         if b.kind == "object":
             j = scene.names.index(b.name)
             boxes = scene.boxes(k, j)
-            i = _nearest_box(boxes, scene.object_q[k, j], close.point)
+            i = 0 if every_box else _nearest_box(boxes, scene.object_q[k, j], close.point)
+            chosen = boxes if every_box else boxes[i : i + 1]
             touching = scene.holding_wrist(k, a.name, j)
             return list(
-                sphere_box_pairs(
-                    k, KIND, spheres, boxes[i : i + 1], j, b.name, touching=touching, first=i
-                )
+                sphere_box_pairs(k, KIND, spheres, chosen, j, b.name, touching=touching, first=i)
             )
         obstacle = FLOOR_BOX if b.kind == "floor" else scene.obstacles[b.name]
         return list(obstacle_pairs(k, KIND, spheres, obstacle))
@@ -217,6 +239,64 @@ def found_pairs(
             if pair.identity not in known:
                 known.add(pair.identity)
                 out.append(pair)
+    return out
+
+
+def _arm_side(close: ClosePair) -> tuple[int, Body] | None:
+    """Which arm (:data:`ARM_LINKS`) ``close`` has a link of against a body not the robot,
+    and that body; None for any other pair."""
+    for robot, other in ((close.a, close.b), (close.b, close.a)):
+        if robot.kind == ROBOT and other.kind != ROBOT:
+            side = next((i for i, arm in enumerate(ARM_LINKS) if robot.name in arm), None)
+            return None if side is None else (side, other)
+    return None
+
+
+def arm_nodes(scene: Scene, node: int, side: int, around: int) -> range:
+    """The nodes at most ``around`` from ``node`` (never node 0) over which the hand of arm
+    ``side`` keeps the contact it has at ``node`` (without a schedule: all of them)."""
+    nodes = len(scene.object_q)
+    first, last = max(node - around, 1), min(node + around, nodes - 1)
+    if scene.schedule is None:
+        return range(first, last + 1)
+    held = scene.schedule["hand_object"][:, side]
+    lo = hi = min(max(node, 1), nodes - 1)
+    while lo > first and held[lo - 1] == held[hi]:
+        lo -= 1
+    while hi < last and held[hi + 1] == held[lo]:
+        hi += 1
+    return range(lo, hi + 1)
+
+
+def arm_pairs(
+    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int
+) -> list[CollisionPair]:
+    """For each of ``close`` between an arm's link and a body not the robot: every link of
+    that arm against every box of that body (:func:`pairs_for` with ``every_box``) at the
+    :func:`arm_nodes` around it, where the schedule does not let them touch; those
+    ``existing`` lacks, once each. A restart's pairs (:func:`search`): the rounds' own cover
+    the one link and box found, which moved the penetration to the next."""
+    known = {p.identity for p in existing}
+    done: set[tuple[str, Body, int]] = set()
+    out = []
+    for c in close:
+        arm = _arm_side(c)
+        if arm is None:
+            continue
+        side, other = arm
+        other = dataclasses.replace(other, geom="")  # a body, whichever geom was close
+        for k in arm_nodes(scene, c.node, side, around):
+            for link in ARM_LINKS[side]:
+                if (link, other, k) in done:
+                    continue
+                done.add((link, other, k))
+                moved = ClosePair(k, 0.0, Body(ROBOT, link, link), other, c.distance, c.point)
+                if scene.allowed(k, moved):
+                    continue
+                for pair in pairs_for(moved, k, scene, every_box=True):
+                    if pair.identity not in known:
+                        known.add(pair.identity)
+                        out.append(pair)
     return out
 
 
@@ -344,23 +424,28 @@ def search(
     totals = _Totals(traj)
     if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
         return traj, rounds, [], []  # a failed solve is no solution to check
-    promote, restarts = cfg.found_hard, 0
+    promote, restarts, seen = cfg.found_hard, 0, []
     while True:
         traj, remaining, unfreed, promote = _rounds(
-            optimizer, traj, model, scene, cfg, pairs, rounds, totals, promote
+            optimizer, traj, model, scene, cfg, pairs, rounds, totals, promote, seen
         )
         if not (remaining or unfreed) or not traj.success or restarts == cfg.restarts:
             return totals.of(traj), rounds, remaining, unfreed
         restarts += 1
+        arms = []
+        if cfg.restart_arm_nodes > 0:
+            arms = arm_pairs(seen, pairs, _checked(scene, traj, cfg), cfg.restart_arm_nodes)
+            pairs.extend(arms)
         print(
             f"[solve] restart {restarts}: {len(remaining)} pairs missing, {len(unfreed)} "
-            f"unfreed; solving again from the guess with the {len(pairs)} pairs",
+            f"unfreed; solving again from the guess with the {len(pairs)} pairs "
+            f"({len(arms)} of them the found arms' whole)",
             flush=True,
         )
         tic = time.perf_counter()
         traj = optimizer.solve(pairs=pairs)
         seconds = time.perf_counter() - tic
-        solved = _round([], None, [], traj, seconds, traj.iterations)
+        solved = _round([], None, arms, traj, seconds, traj.iterations)
         rounds.append(dataclasses.replace(solved, restart=True))
         totals.add(traj)
         if not traj.success:
@@ -377,10 +462,11 @@ def _rounds(
     rounds: list[Round],
     totals: _Totals,
     promote: str,
+    seen: list[ClosePair],
 ) -> tuple[Trajectory, list[ClosePair], list[ClosePair], str]:
     """At most ``cfg.rounds`` rounds from ``traj`` (a successful solve): check it, add the
     pairs it needs to ``pairs`` and solve on from its primal-dual point. Appends to
-    ``rounds`` and ``totals``. Returns the last trajectory, the close pairs still
+    ``rounds`` and ``totals``, and each check's close pairs to ``seen``. Returns the last trajectory, the close pairs still
     unmodelled and those deeper than ``cfg.unfreed_m`` at its check, and whether a later
     round may still promote (``promote``: ``cfg.found_hard`` or ``off``).
 
@@ -391,14 +477,11 @@ def _rounds(
     hand holds the basket). Another failure is not retried: a solve that ran out of
     iterations would likely run out again (S2: 2 x 1000 iterations, 45 min).
     """
-    names = scene.names
     after = 0
     while True:
-        arrays = trajectory_arrays(traj, names)
-        scene = dataclasses.replace(
-            scene, object_q=traj.object_q, schedule=arrays, spacing_m=cfg.found_spacing_m
-        )
-        close = close_pairs(model, arrays, cfg.audit_margin_m, cfg.audit_substeps)
+        scene = _checked(scene, traj, cfg)
+        close = close_pairs(model, scene.schedule, cfg.audit_margin_m, cfg.audit_substeps)
+        seen.extend(close)
         deepest = min(close, key=lambda c: c.distance, default=None)
         new = round_pairs(close, pairs, scene, dataclasses.replace(cfg, found_hard=promote))
         if not new or after == cfg.rounds:
@@ -435,6 +518,14 @@ def _rounds(
         traj = solved
         if not traj.success:
             return traj, [], [], promote
+
+
+def _checked(scene: Scene, traj: Trajectory, cfg: CollisionCfg) -> Scene:
+    """``scene`` along ``traj``: its objects' poses and its contact schedule."""
+    arrays = trajectory_arrays(traj, scene.names)
+    return dataclasses.replace(
+        scene, object_q=traj.object_q, schedule=arrays, spacing_m=cfg.found_spacing_m
+    )
 
 
 def _mm(pair: ClosePair | None) -> str:
