@@ -466,9 +466,10 @@ def _rounds(
 ) -> tuple[Trajectory, list[ClosePair], list[ClosePair], str]:
     """At most ``cfg.rounds`` rounds from ``traj`` (a successful solve): check it, add the
     pairs it needs to ``pairs`` and solve on from its primal-dual point. Appends to
-    ``rounds`` and ``totals``, and each check's close pairs to ``seen``. Returns the last trajectory, the close pairs still
-    unmodelled and those deeper than ``cfg.unfreed_m`` at its check, and whether a later
-    round may still promote (``promote``: ``cfg.found_hard`` or ``off``).
+    ``rounds`` and ``totals``, and each check's close pairs to ``seen``. Returns the last
+    trajectory, the close pairs still unmodelled and those deeper than ``cfg.unfreed_m`` at
+    its check, and whether a later round may still promote (``promote``:
+    ``cfg.found_hard`` or ``off``).
 
     A round whose solve ends infeasible (:data:`INFEASIBLE`) with pairs promoted to (11) is
     solved again without the promotions (their pairs keep the penalty (12) they joined
