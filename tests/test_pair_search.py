@@ -469,28 +469,34 @@ def _open_box(scene, hand_object: np.ndarray) -> Scene:
     return Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames(), schedule)
 
 
-def test_a_restart_keeps_the_found_arm_out_of_the_object_whole(scene):
+def test_a_restart_keeps_both_arms_out_of_the_object_whole(scene):
     """Issue 48 (S1's AllKeyframe, 2.5 kg, 1.2 rad: the rounds moved a palm from one basket
-    wall to the next, then to the shoulder): at a restart the palm found in one part brings
-    every link of its arm against every part, over the nodes its hand keeps its contact."""
+    wall to the next, then to the shoulder, then to the other arm): at a restart the palm
+    found in one part brings every link of both arms against every part, each arm over the
+    nodes its hand keeps its contact."""
     scene_ = _open_box(scene, np.array([-1, -1, -1, 0]))  # the left hand holds from node 3
     box = Body("object", "box", "box/wall")
     palm = Body("robot", "right_rubber_hand", "right_rubber_hand#70")
-    pairs = arm_pairs([_close(palm, box)], [], scene_, around=10)
-    spheres = {p.sphere.name for p in pairs}
-    assert {s.split("/")[0] for s in spheres} == set(ARM_LINKS[1])  # shoulder to palm
+    pairs = arm_pairs([_close(palm, box, node=1)], [], scene_, around=10)
     assert {p.label.split(" | ")[1] for p in pairs} == {"box/0", "box/1"}  # every part
-    assert {p.node for p in pairs} == {1, 2, 3}  # the right hand never holds: +-10, not 0
-    assert len(pairs) == len(spheres) * 2 * 3
-    assert arm_pairs([_close(palm, box)], pairs, scene_, around=10) == []  # there already
-    assert {p.node for p in arm_pairs([_close(palm, box)], [], scene_, around=1)} == {1, 2, 3}
-    assert {p.node for p in arm_pairs([_close(palm, box, node=1)], [], scene_, 1)} == {1, 2}
-    # The left hand: up to where it takes hold (node 3), then the hold's own nodes, where
-    # its palm may touch the box and its wrist is kept out of it touching allowed.
-    left = Body("robot", "left_elbow_link", "left_elbow_link#40")
-    before = arm_pairs([_close(left, box, node=1)], [], scene_, around=10)
-    assert {p.node for p in before} == {1, 2}
-    held = arm_pairs([_close(left, box, node=3)], [], scene_, around=10)
+    right = [p for p in pairs if p.sphere.link in ARM_LINKS[1]]
+    spheres = {p.sphere.name for p in right}
+    assert {s.split("/")[0] for s in spheres} == set(ARM_LINKS[1])  # shoulder to palm
+    assert {p.node for p in right} == {1, 2, 3}  # the right hand never holds; never node 0
+    assert len(right) == len(spheres) * 2 * 3
+    # The left arm up to where its hand takes hold (node 3).
+    left = [p for p in pairs if p.sphere.link in ARM_LINKS[0]]
+    assert {p.sphere.link for p in left} == set(ARM_LINKS[0]) and {p.node for p in left} == {1, 2}
+    assert len(pairs) == len(right) + len(left)
+    assert arm_pairs([_close(palm, box, node=1)], pairs, scene_, around=10) == []  # there
+    assert {p.node for p in arm_pairs([_close(palm, box, node=1)], [], scene_, 0)} == {1}
+    # Over the hold: the left palm may touch the box, its wrist is kept out touching allowed.
+    elbow = Body("robot", "left_elbow_link", "left_elbow_link#40")
+    held = [
+        p
+        for p in arm_pairs([_close(elbow, box, node=3)], [], scene_, around=10)
+        if p.sphere.link in ARM_LINKS[0]
+    ]
     assert {p.node for p in held} == {3}
     assert not any(p.sphere.link == "left_rubber_hand" for p in held)
     assert {p.sphere.link for p in held if p.touching} == set(WRIST_LINKS[0])
@@ -525,8 +531,8 @@ class _Kept(_Stuck):
 
 @pytest.mark.parametrize("around", [0, 10])
 def test_a_restart_solves_with_the_found_arm_whole(scene, around):
-    """The right palm 5 cm in the table, which no solve moves: the restart adds the whole
-    right arm against the table at every node (``restart_arm_nodes``; 0: none added)."""
+    """The right palm 5 cm in the table, which no solve moves: the restart adds both arms
+    whole against the table at every node (``restart_arm_nodes``; 0: none added)."""
     model, _ = scene
     q = np.tile(g1.standing_q35(), (NODES, 1))
     q[1:, 6 + g1.G1_JOINT_NAMES.index("right_shoulder_pitch_joint")] = -0.3
@@ -541,6 +547,6 @@ def test_a_restart_solves_with_the_found_arm_whole(scene, around):
     if around == 0:
         assert restart.pairs_added == 0 and "right_shoulder_pitch_link" not in links
     else:
-        assert restart.pairs_added > 0 and links == set(ARM_LINKS[1])
+        assert restart.pairs_added > 0 and links == set(ARM_LINKS[0] + ARM_LINKS[1])
         found = [p for p in solver.restart_pairs[0] if p.sphere.link == "right_shoulder_roll_link"]
         assert {p.node for p in found} == {1, 2, 3}

@@ -104,12 +104,12 @@ class CollisionCfg:
             from Sec. IV-C.2's guess with every pair found so far (present from the first
             iteration, they keep the motion out of the minimum that held it), and the rounds
             go on from its solution; at most this many times (0: never).
-        restart_arm_nodes: A restart keeps each arm that the checks found against a body
-            (an object, a fixed object, the floor) out of it whole: every link from
-            shoulder to palm against every box of that body, at up to this many nodes
-            either side of where it was found while that hand's contact stays the same
-            (``pair_search.arm_pairs``); the rounds' pairs cover the one link and box, and
-            moved the penetration to the next. 0: the pairs found, as they are.
+        restart_arm_nodes: A restart keeps both arms whole out of each body (an object,
+            a fixed object, the floor) that the checks found an arm's link against: every
+            link from shoulder to palm against every box of that body, at up to this many
+            nodes either side of where it was found while each hand's contact stays the
+            same (``pair_search.arm_pairs``); the rounds' pairs cover the one link and box,
+            and moved the penetration to the next. 0: the pairs found, as they are.
         audit_margin_m: A pair of bodies closer than this in the replay is found [m].
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
         found_spacing_m: A carried object's found pairs take points along its edges (and

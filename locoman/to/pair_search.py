@@ -52,8 +52,8 @@ WRIST_LINKS = tuple(
     tuple(f"{side}_wrist_{joint}_link" for joint in ("roll", "pitch", "yaw"))
     for side in ("left", "right")
 )
-# Each arm's links, shoulder to palm. A restart keeps the whole arm out of what one of them
-# was found in: S1's AllKeyframe (2.5 kg, 1.2 rad) found the right palm in the basket's back
+# Each arm's links, shoulder to palm. A restart keeps both arms whole out of what one of
+# them was found in: S1's AllKeyframe (2.5 kg, 1.2 rad) found the right palm in the basket's back
 # wall, then in its right wall, the shoulder in the shelf's top, each round's pairs pushing
 # the arm into the next link's or box's blind spot.
 ARM_LINKS = tuple(
@@ -242,13 +242,12 @@ def found_pairs(
     return out
 
 
-def _arm_side(close: ClosePair) -> tuple[int, Body] | None:
-    """Which arm (:data:`ARM_LINKS`) ``close`` has a link of against a body not the robot,
-    and that body; None for any other pair."""
+def _arm_against(close: ClosePair) -> Body | None:
+    """The body not the robot that ``close`` has an arm's link (:data:`ARM_LINKS`)
+    against; None for any other pair."""
     for robot, other in ((close.a, close.b), (close.b, close.a)):
         if robot.kind == ROBOT and other.kind != ROBOT:
-            side = next((i for i, arm in enumerate(ARM_LINKS) if robot.name in arm), None)
-            return None if side is None else (side, other)
+            return other if any(robot.name in arm for arm in ARM_LINKS) else None
     return None
 
 
@@ -272,31 +271,35 @@ def arm_pairs(
     close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int
 ) -> list[CollisionPair]:
     """For each of ``close`` between an arm's link and a body not the robot: every link of
-    that arm against every box of that body (:func:`pairs_for` with ``every_box``) at the
-    :func:`arm_nodes` around it, where the schedule does not let them touch; those
-    ``existing`` lacks, once each. A restart's pairs (:func:`search`): the rounds' own cover
-    the one link and box found, which moved the penetration to the next."""
+    both arms against every box of that body (:func:`pairs_for` with ``every_box``), each
+    arm at the :func:`arm_nodes` of its hand around it, where the schedule does not let them
+    touch; those ``existing`` lacks, once each. A restart's pairs (:func:`search`): the
+    rounds' own cover the one link and box found, which moved the penetration to the next
+    link, box or node, and widened to the one arm, to the other arm (S1's Foot+WarmStart,
+    2.5 kg, 0.6 rad: the left elbow's whole arm kept out of the basket, the right palm ended
+    65 mm in its right wall)."""
     known = {p.identity for p in existing}
     done: set[tuple[str, Body, int]] = set()
     out = []
     for c in close:
-        arm = _arm_side(c)
-        if arm is None:
+        other = _arm_against(c)
+        if other is None:
             continue
-        side, other = arm
         other = dataclasses.replace(other, geom="")  # a body, whichever geom was close
-        for k in arm_nodes(scene, c.node, side, around):
-            for link in ARM_LINKS[side]:
-                if (link, other, k) in done:
-                    continue
-                done.add((link, other, k))
-                moved = ClosePair(k, 0.0, Body(ROBOT, link, link), other, c.distance, c.point)
-                if scene.allowed(k, moved):
-                    continue
-                for pair in pairs_for(moved, k, scene, every_box=True):
-                    if pair.identity not in known:
-                        known.add(pair.identity)
-                        out.append(pair)
+        for side, arm in enumerate(ARM_LINKS):
+            for k in arm_nodes(scene, c.node, side, around):
+                for link in arm:
+                    if (link, other, k) in done:
+                        continue
+                    done.add((link, other, k))
+                    body = Body(ROBOT, link, link)
+                    moved = ClosePair(k, 0.0, body, other, c.distance, c.point)
+                    if scene.allowed(k, moved):
+                        continue
+                    for pair in pairs_for(moved, k, scene, every_box=True):
+                        if pair.identity not in known:
+                            known.add(pair.identity)
+                            out.append(pair)
     return out
 
 
