@@ -109,7 +109,9 @@ class CollisionCfg:
             link from shoulder to palm against every box of that body, at up to this many
             nodes either side of where it was found while each hand's contact stays the
             same (``pair_search.arm_pairs``); the rounds' pairs cover the one link and box,
-            and moved the penetration to the next. 0: the pairs found, as they are.
+            and moved the penetration to the next. 0 (the default): the pairs found, as
+            they are; on S1's three Fig. 6 cells that restart, widening converged as often
+            as not (docs/trajectory-optimisation.md).
         audit_margin_m: A pair of bodies closer than this in the replay is found [m].
         audit_substeps: Poses checked between two nodes (linear in q) besides the nodes.
         found_spacing_m: A carried object's found pairs take points along its edges (and
@@ -155,7 +157,7 @@ class CollisionCfg:
     found_hard: str = "constraint"
     rounds: int = 3
     restarts: int = 1
-    restart_arm_nodes: int = 10
+    restart_arm_nodes: int = 0
     audit_margin_m: float = 0.005
     audit_substeps: int = 3
     found_spacing_m: float = 0.04
