@@ -52,10 +52,11 @@ WRIST_LINKS = tuple(
     tuple(f"{side}_wrist_{joint}_link" for joint in ("roll", "pitch", "yaw"))
     for side in ("left", "right")
 )
-# Each arm's links, shoulder to palm. A restart keeps both arms whole out of what one of
-# them was found in: S1's AllKeyframe (2.5 kg, 1.2 rad) found the right palm in the basket's back
-# wall, then in its right wall, the shoulder in the shelf's top, each round's pairs pushing
-# the arm into the next link's or box's blind spot.
+# Each arm's links, shoulder to palm. With ``CollisionCfg.restart_arm_nodes`` a restart
+# keeps both arms whole out of what one of them was found in: S1's AllKeyframe (2.5 kg,
+# 1.2 rad) found the right palm in the basket's back wall, then in its right wall, the
+# shoulder in the shelf's top, each round's pairs pushing the arm into the next link's or
+# box's blind spot.
 ARM_LINKS = tuple(
     tuple(
         f"{side}_{link}"
@@ -441,8 +442,8 @@ def search(
             pairs.extend(arms)
         print(
             f"[solve] restart {restarts}: {len(remaining)} pairs missing, {len(unfreed)} "
-            f"unfreed; solving again from the guess with the {len(pairs)} pairs "
-            f"({len(arms)} of them the found arms' whole)",
+            f"unfreed; solving again from the guess with the {len(pairs)} pairs"
+            + (f" ({len(arms)} of them the found arms' whole)" if arms else ""),
             flush=True,
         )
         tic = time.perf_counter()
