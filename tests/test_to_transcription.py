@@ -417,7 +417,9 @@ def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     and walls (``parts``); an arm holding it keeps its forearm out of them, touching
     allowed (with the full margin, the forearm beside the wall its palm presses sat on the
     penalty's boundary); an arm holding a solid box or gripping a trolley's handle is not
-    checked; a free one is, with the margin."""
+    checked; a free one is, with the margin, and out of the basket's bounding box, not only
+    its parts (a palm crossed a 20 mm wall between two nodes into its empty inside); a hand
+    holding another object keeps out of the parts alone (it may put that object in)."""
     from locoman.retarget.robot import contact_frames
     from locoman.scene.objects import object_geometry
 
@@ -441,8 +443,8 @@ def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     left_arm |= {"left_hand/centre", "left_hand/back", "left_hand/front"}
     at_rest = (ObjectMode(True, Surface()),) * 3
 
-    def pairs(j: int, holding: bool) -> list:
-        mode = NodeMode((True, True), (j if holding else None, None), at_rest)
+    def pairs(j: int, holding: bool, held: int | None = None) -> list:
+        mode = NodeMode((True, True), (j if holding else held, None), at_rest)
         out = node_collision_pairs(0, mode, objects, (), cfg, ContactCfg(), contact_frames())
         return [p for p in out if p.obj == j and p.sphere.name in left_arm]
 
@@ -453,7 +455,13 @@ def test_a_basket_is_open_and_a_hand_holding_it_keeps_its_forearm_out_of_it():
     assert pairs(1, holding=True) == []  # a solid box: palm on its face
     assert pairs(2, holding=True) == []  # a gripped handle
     free_basket = pairs(0, holding=False)
-    assert len(free_basket) == 5 * (3 + forearm) and not any(p.touching for p in free_basket)
+    assert len(free_basket) == 3 + forearm and not any(p.touching for p in free_basket)
+    for pair in free_basket:  # the bounding box, numbered after the parts
+        assert pair.label.endswith("basket/5")
+        np.testing.assert_allclose(pair.numbers["centre"], [0.0, 0.0, 0.11])
+        np.testing.assert_allclose(pair.numbers["half"], [0.15, 0.2, 0.11])
+    holding_box = pairs(0, holding=False, held=1)
+    assert len(holding_box) == 5 * (3 + forearm) and not any(p.touching for p in holding_box)
     assert len(pairs(1, holding=False)) == 3  # a solid box: the palm, one box
 
 

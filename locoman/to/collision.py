@@ -79,7 +79,8 @@ class CollisionCfg:
         hands_object: Between each palm while it does not touch the object, and the
             object; a non-solid object's parts check the forearms too; the elbows always.
             The forearms of the hands holding an open object (a basket) are kept out of
-            its parts with the least margin (touching allowed).
+            its parts with the least margin (touching allowed); a free hand is kept out of
+            a basket's bounding box (``ObjectModel.reached_from_outside``).
         legs_object: Between the hips', thighs' and shins' spheres and each object's boxes.
         feet_object: Between the feet (a heel and a toe sphere each) and every object
             resting on the floor, but for a foot whose sole rests on its top (S1's box,

@@ -156,6 +156,9 @@ class ObjectModel:
         wheels: A wheeled object's wheels as boxes (centre (3,), half sizes (3,)) in its
             frame [m]: what the feet keep out of (its platform is over them: its chassis
             box would keep the feet a stride back from the handle).
+        reached_from_outside: A hand that holds nothing keeps out of its bounding box, not
+            only its parts: it takes the object from outside. A basket's parts leave its
+            inside free, and a palm crossed a 20 mm wall between two nodes into it.
     """
 
     name: str
@@ -169,6 +172,7 @@ class ObjectModel:
     rear_axle_x: float | None = None
     parts: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
     wheels: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
+    reached_from_outside: bool = False
 
     @property
     def wheeled(self) -> bool:
@@ -179,14 +183,16 @@ class ObjectModel:
         """The object of the scene's object table (``objects.json``) entry ``spec``: a
         trolley (kind ``trolley``) is a wheeled chassis with the mass of a box of its size,
         the wheels' layout read from its ``wheel_*`` primitives; a basket an open box, its
-        floor and walls its parts; anything else a solid box."""
+        floor and walls its parts, reached from outside; anything else a solid box."""
         size = np.array(spec["size_m"], dtype=float)
         model = cls.box(name, size, spec["mass_kg"], spec["friction"])
         primitives = spec["primitives"]
         if spec["kind"] == "basket":
             # Open: a hand holding a wall keeps its forearm out of the floor and the walls
             # (as a solid box its holding forearm went unchecked, 5 cm into the floor).
-            return dataclasses.replace(model, solid=False, parts=_boxes(primitives))
+            return dataclasses.replace(
+                model, solid=False, parts=_boxes(primitives), reached_from_outside=True
+            )
         if spec["kind"] != "trolley":
             return model
         wheels = np.array([p["pos"][:2] for p in primitives if p["name"].startswith("wheel")])

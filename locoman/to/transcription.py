@@ -366,11 +366,23 @@ def node_collision_pairs(
             # forearm, while a trolley's thin handle bar passes between the palms and the
             # body points, so an open object checks the forearm too. The elbows always:
             # taking a basket that overhangs a shelf, they went into its floor.
-            arms = []
+            arms, reaching = [], []
             for i in range(2):
-                if mode.hands[i] != j:
-                    arms += palms[i] if obj.solid else palms[i] + forearms[i]
+                if mode.hands[i] == j:
+                    continue
+                spheres = palms[i] if obj.solid else palms[i] + forearms[i]
+                free = obj.reached_from_outside and mode.hands[i] is None
+                (reaching if free else arms).extend(spheres)
             yield from sphere_box_pairs(k, "hands_object", arms + elbows, boxes, j, name)
+            # A free hand reaching for a basket: against its parts alone, the first solve
+            # took S1's basket with a palm through its wall into its empty inside, and the
+            # found pairs chased the hand from wall to wall (two Fig. 6 cells failed so).
+            # Its bounding box (split over its seat like the parts) is numbered after them.
+            if reaching:
+                hull = seated_boxes([_object_box(obj)], mode.objects[j].seat)
+                yield from sphere_box_pairs(
+                    k, "hands_object", reaching, hull, j, name, first=len(boxes)
+                )
             # The forearms of the hands holding an open object (a basket's wall) are kept
             # out of it, touching allowed; a gripped handle sits in the hand.
             if not obj.solid and not _prehensile(contact, obj):
