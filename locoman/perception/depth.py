@@ -13,8 +13,7 @@ import cv2
 import numpy as np
 
 from locoman.config.perception import DepthErrorCfg, TorchCfg
-from locoman.errors import ModelError
-from locoman.perception.weights import check_weights_dir, require_package, torch_runtime
+from locoman.perception.weights import load_transformers, require_package
 
 
 def depth_edges(depth: np.ndarray, jump_m: float) -> np.ndarray:
@@ -56,19 +55,13 @@ class DepthAnythingEstimator:
     """
 
     def __init__(self, weights_dir: str | None, runtime: TorchCfg) -> None:
-        path = check_weights_dir(weights_dir, "perception.clouds.depth_weights_dir", "config.json")
-        self.device, self.dtype = torch_runtime(runtime, "perception.clouds.depth_runtime")
-        transformers = require_package("transformers")
-        try:
-            self.model = transformers.AutoModelForDepthEstimation.from_pretrained(
-                str(path), local_files_only=True, dtype=self.dtype
-            )
-            self.processor = transformers.AutoImageProcessor.from_pretrained(
-                str(path), local_files_only=True
-            )
-        except (OSError, ValueError, KeyError) as exc:  # KeyError: a config lacks a key
-            raise ModelError(f"cannot load the depth model from {path}: {exc}") from None
-        self.model.to(self.device).eval()
+        self.model, self.processor, self.device, self.dtype = load_transformers(
+            weights_dir,
+            "perception.clouds.depth",
+            runtime,
+            ("AutoModelForDepthEstimation", "AutoImageProcessor"),
+            "the depth model",
+        )
 
     def __call__(self, rgb: np.ndarray) -> np.ndarray:
         """Depth (H, W) float32 [m] of an RGB image, resized to the image."""

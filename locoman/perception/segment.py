@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 
 from locoman.config.perception import TorchCfg
-from locoman.errors import ModelError, SceneError
-from locoman.perception.weights import check_weights_dir, require_package, torch_runtime
+from locoman.errors import SceneError
+from locoman.perception.weights import load_transformers, require_package
 
 
 def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -72,19 +72,13 @@ class SamSegmenter:
     """
 
     def __init__(self, weights_dir: str | None, runtime: TorchCfg) -> None:
-        path = check_weights_dir(weights_dir, "perception.masks.sam_weights_dir", "config.json")
-        self.device, self.dtype = torch_runtime(runtime, "perception.masks.sam_runtime")
-        transformers = require_package("transformers")
-        try:
-            self.model = transformers.SamModel.from_pretrained(
-                str(path), local_files_only=True, dtype=self.dtype
-            )
-            self.processor = transformers.SamProcessor.from_pretrained(
-                str(path), local_files_only=True
-            )
-        except (OSError, ValueError, KeyError) as exc:  # KeyError: a config lacks a key
-            raise ModelError(f"cannot load the SAM checkpoint from {path}: {exc}") from None
-        self.model.to(self.device).eval()
+        self.model, self.processor, self.device, self.dtype = load_transformers(
+            weights_dir,
+            "perception.masks.sam",
+            runtime,
+            ("SamModel", "SamProcessor"),
+            "the SAM checkpoint",
+        )
 
     def __call__(self, rgb: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """The best-scoring mask (H, W) bool for ``box`` (x0, y0, x1, y1) [px]."""

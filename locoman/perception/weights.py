@@ -60,3 +60,39 @@ def torch_runtime(cfg: TorchCfg, key: str) -> tuple[Any, Any]:
             f"device: set {key}.device=cpu, or install a CUDA build of torch on a GPU machine"
         )
     return torch.device(cfg.device), getattr(torch, cfg.dtype)
+
+
+def load_transformers(
+    weights_dir: str | None,
+    key: str,
+    runtime: TorchCfg,
+    classes: tuple[str, str],
+    what: str,
+) -> tuple[Any, Any, Any, Any]:
+    """A transformers checkpoint and its processor from a local folder, on ``runtime``'s
+    device and dtype, in eval mode: (model, processor, torch device, torch dtype).
+
+    Args:
+        weights_dir: Folder with ``config.json``, the weights and the processor's
+            ``preprocessor_config.json`` (written by ``save_pretrained``).
+        key: The config keys' stem (``perception.masks.sam``): ``<key>_weights_dir`` and
+            ``<key>_runtime`` are named in the errors.
+        runtime: Device and precision.
+        classes: The transformers model and processor classes (``SamModel``,
+            ``SamProcessor``).
+        what: The model, for the errors (``the SAM checkpoint``).
+
+    Raises:
+        ModelError: No folder, no package, no CUDA where asked, or a checkpoint that does
+            not load.
+    """
+    path = check_weights_dir(weights_dir, f"{key}_weights_dir", "config.json")
+    device, dtype = torch_runtime(runtime, f"{key}_runtime")
+    transformers = require_package("transformers")
+    model_class, processor_class = (getattr(transformers, name) for name in classes)
+    try:
+        model = model_class.from_pretrained(str(path), local_files_only=True, dtype=dtype)
+        processor = processor_class.from_pretrained(str(path), local_files_only=True)
+    except (OSError, ValueError, KeyError) as exc:  # KeyError: a config lacks a key
+        raise ModelError(f"cannot load {what} from {path}: {exc}") from None
+    return model.to(device).eval(), processor, device, dtype
