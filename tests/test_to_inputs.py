@@ -79,7 +79,8 @@ def _foot_reference(kf: Keyframe) -> np.ndarray:
         np.zeros((1, 2, 3)),
         np.tile(np.eye(3), (1, 2, 1, 1)),
     )
-    P = node_parameters(inputs, build_schedule(inputs, ScheduleCfg()), (True, True))
+    schedule = build_schedule(inputs, ScheduleCfg())
+    P = node_parameters(inputs, schedule, keyframe_base=True, keyframe_foot=True)
     par = NodeLayout.of(1).parameters
     on = P[par["kf_foot_on"]].ravel() > 0
     assert on.any()

@@ -40,7 +40,17 @@ from locoman.to.collision import (
     edge_points,
 )
 from locoman.to.costs import CostWeights
-from locoman.to.layout import FEET, HANDS, KINEMATICS, N_KIN, NodeLayout, ObjectModel
+from locoman.to.layout import (
+    FEET,
+    HANDS,
+    KINEMATICS,
+    N_KIN,
+    ORIENTATION,
+    POSITION,
+    NodeLayout,
+    ObjectModel,
+    limb,
+)
 from locoman.to.modes import NodeMode
 from locoman.to.seats import seated_boxes
 from locoman.to.spheres import (
@@ -229,7 +239,13 @@ class _Index:
         self.n_y = nodes * self.virtual_width
 
     def var(self, k: int, name: str) -> np.ndarray:
-        s = self.layout.variables[name]
+        return self._at(k, self.layout.variables[name])
+
+    def limb(self, k: int, name: str, i: int) -> np.ndarray:
+        """Limb i's share of a per-limb variable (``foot_wrench``, ``hand_slack``, ...)."""
+        return self._at(k, limb(self.layout.variables[name], i))
+
+    def _at(self, k: int, s: slice) -> np.ndarray:
         return k * self.width + np.arange(s.start, s.stop)
 
     def virtual(self, k: int) -> int:
@@ -244,17 +260,13 @@ class _Index:
         return self.virtual(k) + np.arange(s.start, s.stop)
 
     def obj(self, k: int, j: int, quantity: str) -> np.ndarray:
-        s = self.layout.object_variables(j, quantity)
-        return k * self.width + np.arange(s.start, s.stop)
+        return self._at(k, self.layout.object_variables(j, quantity))
 
     def foot(self, k: int, i: int, quantity: str) -> np.ndarray:
         return self.kin(k, f"{FEET[i]}_{quantity}")
 
     def hand(self, k: int, i: int, quantity: str) -> np.ndarray:
         return self.kin(k, f"{HANDS[i]}_{quantity}")
-
-    def wrench(self, k: int, name: str, i: int) -> np.ndarray:
-        return self.var(k, name)[6 * i : 6 * i + 6]
 
     def sphere(self, k: int, sphere: RobotSphere) -> np.ndarray:
         return self.virtual(k) + N_KIN + self.spheres.slots(sphere)
@@ -715,7 +727,7 @@ def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par)
     for k, mode in enumerate(modes[:-1]):
         dt = at.var(k, "dt")
         for i in range(2):
-            foot = at.wrench(k, "foot_wrench", i)
+            foot = at.limb(k, "foot_wrench", i)
             if mode.feet[i]:
                 r = at.foot(k, i, "r")
                 x = {"wrench": foot, "r": r, "c": at.kin(k, "com"), "dt": dt}
@@ -728,8 +740,8 @@ def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par)
             j = mode.hands[i]
             if j is None:
                 continue
-            hand = at.wrench(k, "hand_wrench", i)
-            point = P[par["hand_points"], k][3 * i : 3 * i + 3]
+            hand = at.limb(k, "hand_wrench", i)
+            point = P[limb(par["hand_points"], i), k]
             x = {"wrench": hand, "r_q": at.obj(k, j, "q"), "c": at.kin(k, "com"), "dt": dt}
             b.onto(at_object, x, {"sign": 1.0, "r_local": point}, robot_rows[k])
             if (k, j) in object_rows:
@@ -748,7 +760,7 @@ def _dynamics(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par)
             for rider in mode.riders(j):
                 x = {
                     "wrench": at.obj(k, rider, "support_wrench"),
-                    "r": at.obj(k, rider, "q")[0:3],
+                    "r": at.obj(k, rider, "q")[POSITION],
                     "c_q": at.obj(k, j, "q"),
                     "dt": dt,
                 }
@@ -792,13 +804,13 @@ def _contacts(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par,
                 "r": at.hand(k1, i, "r"),
                 "R": at.hand(k1, i, "R"),
                 "w": at.hand(k1, i, "w"),
-                "slack": at.var(k1, "hand_slack")[3 * i : 3 * i + 3],
+                "slack": at.limb(k1, "hand_slack", i),
                 "q_o": at.obj(k1, j, "q"),
                 "v_o": at.obj(k1, j, "v"),
             }
             p = {
-                "point": P[par["hand_points"], k1][3 * i : 3 * i + 3],
-                "face": P[par["hand_frames"], k1][9 * i : 9 * i + 9],
+                "point": P[limb(par["hand_points"], i), k1],
+                "face": P[limb(par["hand_frames"], i), k1],
                 "palm_radius": palm_radius,
             }
             b.own(hand_contact_kind(onset)).add(x, p)
@@ -837,16 +849,16 @@ def _wrench_rows(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, p
     for k, mode in enumerate(modes[:-1]):
         for i in range(2):
             if mode.feet[i]:
-                x = {"wrench": at.wrench(k, "foot_wrench", i), "R": at.foot(k, i, "R")}
+                x = {"wrench": at.limb(k, "foot_wrench", i), "R": at.foot(k, i, "R")}
                 p = {"mu": contact.floor_friction, "half": sole_half}
                 b.own(foot_cone_kind()).add(x, p)
             j = mode.hands[i]
             if j is not None and not _prehensile(contact, numbers.objects[j]):
-                x = {"wrench": at.wrench(k, "hand_wrench", i), "rpy": at.obj(k, j, "q")[3:6]}
+                x = {"wrench": at.limb(k, "hand_wrench", i), "rpy": at.obj(k, j, "q")[ORIENTATION]}
                 p = {
                     "mu": numbers.objects[j].friction,
                     "half": contact.palm_half_extents_m,
-                    "face": P[par["hand_frames"], k][9 * i : 9 * i + 9],
+                    "face": P[limb(par["hand_frames"], i), k],
                 }
                 b.own(object_face_cone_kind()).add(x, p)
         for j, obj in enumerate(numbers.objects):
