@@ -20,6 +20,7 @@ from locoman.to.collision import (
     edge_points,
     obstacles_from_objects,
 )
+from locoman.to.collision_pairs import object_boxes
 from locoman.to.layout import ObjectModel
 from locoman.to.optimizer import Trajectory
 from locoman.to.pair_search import (
@@ -37,7 +38,6 @@ from locoman.to.pair_search import (
     search,
     unmodelled,
 )
-from locoman.to.transcription import object_boxes
 
 NODES = 4
 BOX_ON_TABLE = np.array([0.4, 0.0, 0.72, 0.0, 0.0, 0.0])

@@ -26,6 +26,7 @@ from locoman.to.assembly import (
     structure_key,
 )
 from locoman.to.bounds import bounds, initial_guess
+from locoman.to.collision_pairs import CollisionPair
 from locoman.to.costs import averaged_over_nodes
 from locoman.to.inputs import TOInputs, guided_by
 from locoman.to.modes import node_modes
@@ -33,7 +34,7 @@ from locoman.to.node_parameters import node_parameters
 from locoman.to.schedule import build_schedule
 from locoman.to.supports import Support
 from locoman.to.terms.library import all_kinds, g1_terms
-from locoman.to.transcription import CollisionPair, Numbers, Transcription, transcribe
+from locoman.to.transcription import Numbers, Transcription, transcribe
 
 
 @dataclasses.dataclass(frozen=True)

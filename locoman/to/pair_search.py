@@ -29,11 +29,7 @@ from locoman.to.collision import (
     edge_point_counts,
     edge_points,
 )
-from locoman.to.layout import ObjectModel
-from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
-from locoman.to.seats import Seat, seated_boxes
-from locoman.to.spheres import RobotSphere, foot_spheres, link_sphere_list
-from locoman.to.transcription import (
+from locoman.to.collision_pairs import (
     CollisionPair,
     object_boxes,
     object_environment_pairs,
@@ -41,6 +37,10 @@ from locoman.to.transcription import (
     obstacle_pairs,
     sphere_box_pairs,
 )
+from locoman.to.layout import ObjectModel
+from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
+from locoman.to.seats import Seat, seated_boxes
+from locoman.to.spheres import RobotSphere, foot_spheres, link_sphere_list
 
 KIND = "found"
 PROMOTED = "found_hard"  # a found pair still penetrated after a round with it
