@@ -302,7 +302,8 @@ def transcribe(
         P: (n_params, N) the per-node numbers (:func:`locoman.to.node_parameters.node_parameters`).
         numbers: Weights, contact and collision numbers, objects, obstacles.
         robot: The robot's own term kinds.
-        pairs: The collision pairs; None: :func:`locoman.to.collision_pairs.collision_pairs` of the configuration.
+        pairs: The collision pairs; None: the configuration's
+            (:func:`locoman.to.collision_pairs.collision_pairs`).
     """
     if pairs is None:
         pairs = collision_pairs(modes, numbers, robot.frames)
