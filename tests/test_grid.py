@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import multiprocessing
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +45,7 @@ from locoman.grid.figures import (
 )
 from locoman.grid.launch import cells, check_overrides, multirun_command
 from locoman.grid.runs import FIGURE_RUNS, KEYFRAME_RUNS, PIPELINE_RUNS, find_run
+from locoman.grid.slots import SLOTS_ENV, environment_slot, slot
 from locoman.grid.sources import PACKAGE, imported_sources, imports_of
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
@@ -521,31 +524,38 @@ def test_the_figures_stage_runs_its_grids_on_the_parameters_it_was_given(
     params, tmp_path, monkeypatch
 ):
     """``benchmarks/figures_subset.py`` hands a parameters file with a smaller grid: the
-    cells must read that file, or they would run the full grid."""
+    cells must read that file, or they would run the full grid. The figures' grids run side
+    by side, their jobs sharing ``figures.n_jobs`` slots."""
+    import locoman.grid.launch as launch_module
     import locoman.grid.report as report
 
     launched = []
     monkeypatch.setattr(
-        report,
+        launch_module,
         "launch",
-        lambda scenario, figure, params_file, runs: launched.append(
-            (scenario, figure, params_file)
+        lambda scenario, figure, params_file, runs, env: launched.append(
+            (scenario, figure, params_file, tuple(sorted(env.items())))
         ),
     )
     subset = tmp_path / "params.yaml"
     with pytest.raises(ArtifactError, match="has no record"):
         report.figures_scenario(params, "tiny", tmp_path / "out", tmp_path, params_file=subset)
-    assert launched == [("tiny", f, subset) for f in ("fig5", "fig6", "vb")]
+    assert sorted(f[:3] for f in launched) == [("tiny", f, subset) for f in ("fig5", "fig6", "vb")]
+    assert len({f[3] for f in launched}) == 1
+    assert dict(launched[0][3])[SLOTS_ENV] == str(params.figures.n_jobs)
 
 
 def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, monkeypatch):
     """``figures=["fig6"]`` (``figures_subset.py --figures fig6``) runs and reports Fig. 6 only;
     an unknown figure is refused before anything runs."""
+    import locoman.grid.launch as launch_module
     import locoman.grid.report as report
 
     launched = []
     monkeypatch.setattr(
-        report, "launch", lambda scenario, figure, params_file, runs: launched.append(figure)
+        launch_module,
+        "launch",
+        lambda scenario, figure, params_file, runs, env: launched.append((figure, env)),
     )
     records = [
         _record(run.name, "converged" if k else "not_converged", 0.002, yaw=yaw)
@@ -555,7 +565,7 @@ def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, mon
     monkeypatch.setattr(report, "collect", lambda *args: records)
     out = tmp_path / "out"
     metrics = report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig6"])
-    assert launched == ["fig6"]
+    assert launched == [("fig6", None)]  # one grid: its own launcher's n_jobs, no slots
     assert (out / "fig6.png").is_file() and not (out / "fig5.png").exists()
     assert set(metrics) == {"fig6", "claims"} and metrics["fig6"]["cells"] == 2
     assert set(metrics["fig6"]["penetration_by_class"]) == {r.name for r in KEYFRAME_RUNS}
@@ -564,12 +574,13 @@ def test_one_figure_alone_is_launched_drawn_and_summarised(params, tmp_path, mon
     assert len((out / "summary.csv").read_text().splitlines()) == 1 + len(records)
     with pytest.raises(ConfigError, match="unknown figures"):
         report.figures_scenario(params, "tiny", out, tmp_path, figures=["fig7"])
-    assert launched == ["fig6"]
+    assert len(launched) == 1
 
 
 def test_a_grid_of_chosen_runs_launches_and_draws_only_those(params, tmp_path, monkeypatch):
     """``figures_subset.py --runs none all``: Fig. 6's two compared settings alone (S2 in
     paper A's settings is 12 min a solve); ``--draw-only`` launches nothing."""
+    import locoman.grid.launch as launch_module
     import locoman.grid.report as report
 
     planned = cells(params, "tiny", "fig6", ["all", "none"])
@@ -579,7 +590,9 @@ def test_a_grid_of_chosen_runs_launches_and_draws_only_those(params, tmp_path, m
         cells(params, "tiny", "fig6", ["nokey"])
     launched = []
     monkeypatch.setattr(
-        report, "launch", lambda scenario, figure, params_file, runs: launched.append(runs)
+        launch_module,
+        "launch",
+        lambda scenario, figure, params_file, runs, env: launched.append(runs),
     )
     records = [
         _record(run, "converged", 0.002 * (run == "none"), yaw=yaw)
@@ -658,3 +671,34 @@ def test_a_grids_records_are_exported_and_restored_where_none_is(tmp_path):
         export_records(data, "tiny", "vb", kept)
     (kept / RECORDS / "fig6" / "bad.json").write_text(json.dumps({"run": "all"}))
     assert main(["--data-dir", str(fresh), "restore", "tiny", str(kept)]) == 2
+
+
+def _hold_a_slot(folder: str, log: str) -> None:
+    with slot(Path(folder), 2, poll_s=0.01) as i:
+        with open(log, "a") as out:
+            out.write(f"{time.monotonic()} +1 {i}\n")
+        time.sleep(0.3)
+        with open(log, "a") as out:
+            out.write(f"{time.monotonic()} -1 {i}\n")
+
+
+def test_jobs_of_grids_side_by_side_hold_at_most_their_slots(tmp_path):
+    """Five processes, two slots: never more than two cells at once, every one runs, and a
+    job without the slots in its environment runs at once."""
+    log = tmp_path / "log.txt"
+    context = multiprocessing.get_context("fork")
+    jobs = [
+        context.Process(target=_hold_a_slot, args=(str(tmp_path / "slots"), str(log)))
+        for _ in range(5)
+    ]
+    for job in jobs:
+        job.start()
+    for job in jobs:
+        job.join(timeout=60)
+    assert all(job.exitcode == 0 for job in jobs)
+    events = sorted(tuple(line.split()) for line in log.read_text().splitlines())
+    running = np.cumsum([int(change) for _, change, _ in events])
+    assert len(events) == 10 and running.max() == 2 and running[-1] == 0
+    assert {index for _, _, index in events} == {"0", "1"}
+    with environment_slot({}):
+        pass  # no slots asked for: nothing to wait for

@@ -23,6 +23,7 @@ from threadpoolctl import threadpool_limits
 from locoman.config import load_params
 from locoman.errors import ConfigError
 from locoman.grid.cell import CellCfg, run_cell
+from locoman.grid.slots import environment_slot
 
 CONFIG_DIR = Path(__file__).resolve().parent / "conf"
 
@@ -63,7 +64,8 @@ def main(cfg: DictConfig) -> dict[str, Any]:
     # One BLAS / OpenMP thread per cell, as every stage (locoman.stage.run_stage): the same
     # bits on any machine, and n_jobs cells share the cores instead of oversubscribing them.
     os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = "1"
-    with threadpool_limits(limits=1):
+    # Grids launched side by side share the workers (locoman/grid/slots.py).
+    with environment_slot(), threadpool_limits(limits=1):
         record = run_cell(load_params(cfg.params_file), cell, Path(cfg.data_dir))
     print(summary(record), flush=True)
     return record

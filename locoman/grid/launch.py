@@ -13,11 +13,14 @@ a cluster, finishes where it left off.
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import os
 import subprocess
 import sys
-from collections.abc import Sequence
+import tempfile
+import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -28,6 +31,7 @@ from locoman.config.schema import RootCfg
 from locoman.errors import ConfigError, LocomanError
 from locoman.grid.cell import CellCfg
 from locoman.grid.runs import FIGURE_RUNS
+from locoman.grid.slots import slot_environment
 from locoman.kernels import pin_kernels
 
 
@@ -143,9 +147,11 @@ def launch(
     extra: list[str] = (),
     params_file: str | Path = "params.yaml",
     runs: Sequence[str] | None = None,
+    env: Mapping[str, str] | None = None,
 ) -> None:
     """Run the grid (a subprocess: Hydra owns its process's logging and working state);
-    ``runs``: only these of the figure's runs.
+    ``runs``: only these of the figure's runs; ``env``: more variables for its jobs (the
+    slots of grids launched side by side, :mod:`locoman.grid.slots`).
 
     Raises:
         ConfigError: Bad arguments.
@@ -159,13 +165,43 @@ def launch(
     print("[grid] " + " ".join(command[1:]), flush=True)
     # The cells' processes load NumPy first thing: the kernels are pinned in their
     # environment, as a stage pins its own (locoman/kernels.py).
-    env = dict(os.environ)
-    pin_kernels(env)
-    if subprocess.run(command, env=env).returncode != 0:
+    jobs_env = dict(os.environ) | dict(env or {})
+    pin_kernels(jobs_env)
+    if subprocess.run(command, env=jobs_env).returncode != 0:
         raise LocomanError(
             f"the {figure} grid of {scenario} stopped (the Hydra multirun above failed; a "
             "cell's own failure is recorded and does not stop it)"
         )
+
+
+def launch_figures(
+    cfg: RootCfg,
+    scenario: str,
+    figures: Sequence[str],
+    params_file: str | Path = "params.yaml",
+    runs: Sequence[str] | None = None,
+) -> dict[str, float]:
+    """Run the grids of ``figures`` side by side; return each one's wall time [s], from its
+    launch to its last cell. With the ``joblib`` launcher their jobs share
+    ``figures.n_jobs`` slots (:mod:`locoman.grid.slots`), so the cores stay busy until the
+    last cell of any figure instead of each figure's; elsewhere (a cluster) each grid's
+    launcher places its own jobs.
+
+    Raises:
+        LocomanError: A grid's multirun failed (the others still run to their end).
+    """
+
+    def timed(figure: str, env: Mapping[str, str] | None) -> float:
+        tic = time.perf_counter()
+        launch(scenario, figure, params_file=params_file, runs=runs, env=env)
+        return time.perf_counter() - tic
+
+    with tempfile.TemporaryDirectory(prefix="locoman-slots-") as folder:
+        shared = cfg.figures.launcher == "joblib" and len(figures) > 1
+        env = slot_environment(Path(folder), cfg.figures.n_jobs) if shared else None
+        with concurrent.futures.ThreadPoolExecutor(max(len(figures), 1)) as pool:
+            futures = {f: pool.submit(timed, f, env) for f in figures}
+        return {f: future.result() for f, future in futures.items()}
 
 
 def main(argv: list[str]) -> int:

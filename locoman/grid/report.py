@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -44,7 +43,7 @@ from locoman.grid.figures import (
     summary_csv,
     vb_figure,
 )
-from locoman.grid.launch import cells, launch
+from locoman.grid.launch import cells, launch_figures
 from locoman.grid.runs import KEYFRAME_RUNS
 from locoman.sim.penetration import CLASSES
 
@@ -283,11 +282,7 @@ def figures_scenario(
     figures = [f for f in REPORTS if f in figures]
     if not solve:
         return draw(cfg, scenario, figures, out_dir, data_dir, runs=runs)
-    seconds = {}
-    for figure in figures:
-        tic = time.perf_counter()
-        launch(scenario, figure, params_file=params_file, runs=runs)
-        seconds[figure] = time.perf_counter() - tic
+    seconds = launch_figures(cfg, scenario, figures, params_file=params_file, runs=runs)
     return draw(cfg, scenario, figures, out_dir, data_dir, seconds, runs)
 
 
