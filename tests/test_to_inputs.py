@@ -12,8 +12,8 @@ from locoman.contact.io import CONTACTS, subtask_file
 from locoman.scene import g1
 from locoman.to.inputs import Keyframe, TOInputs, sole_points
 from locoman.to.layout import NodeLayout, ObjectModel
+from locoman.to.loading import _feet_on_object
 from locoman.to.node_parameters import node_parameters
-from locoman.to.pipeline import _feet_on_object
 from locoman.to.schedule import ScheduleCfg, build_schedule
 from locoman.to.supports import Surface
 
