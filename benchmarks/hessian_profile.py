@@ -38,7 +38,8 @@ from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
 from locoman.to.assembly import HESSIANS, Block, BlockNLP, parameter_vector
 from locoman.to.bounds import bounds, initial_guess
-from locoman.to.pipeline import build_optimizer, load_inputs
+from locoman.to.loading import load_inputs
+from locoman.to.pipeline import build_optimizer
 
 
 def fastest(function: ca.Function, args: tuple, repeats: int) -> float:

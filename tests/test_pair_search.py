@@ -20,9 +20,8 @@ from locoman.to.collision import (
     edge_points,
     obstacles_from_objects,
 )
-from locoman.to.layout import ObjectModel
-from locoman.to.optimizer import Trajectory
-from locoman.to.pair_search import (
+from locoman.to.collision_pairs import object_boxes
+from locoman.to.found_pairs import (
     ARM_LINKS,
     FLOOR_BOX,
     PROMOTED,
@@ -34,10 +33,11 @@ from locoman.to.pair_search import (
     pairs_for,
     promoted_pairs,
     round_pairs,
-    search,
     unmodelled,
 )
-from locoman.to.transcription import object_boxes
+from locoman.to.layout import ObjectModel
+from locoman.to.optimizer import Trajectory
+from locoman.to.pair_search import search
 
 NODES = 4
 BOX_ON_TABLE = np.array([0.4, 0.0, 0.72, 0.0, 0.0, 0.0])

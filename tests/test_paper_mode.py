@@ -104,7 +104,7 @@ def test_a_keyframe_that_does_not_guide_has_no_keyframe_cost_and_starts_at_the_n
     assert [kf.guides for kf in inputs.keyframes] == [True, False, True]
     assert guiding_keyframe(inputs, 1) is inputs.keyframes[2]
     schedule = build_schedule(inputs, ScheduleCfg())
-    P = node_parameters(inputs, schedule, (True, True))
+    P = node_parameters(inputs, schedule, keyframe_base=True, keyframe_foot=True)
     par = NodeLayout.of(1).parameters
     on = np.flatnonzero(P[par["kf_base_on"]].ravel())
     assert list(on) == [schedule.keyframe_nodes()[0], schedule.keyframe_nodes()[2]]

@@ -14,11 +14,11 @@ from hypothesis import strategies as st
 from locoman.config.to import ContactCfg
 from locoman.retarget.robot import contact_frames
 from locoman.to.collision import CollisionCfg, Obstacle, box_clearance
+from locoman.to.collision_pairs import node_collision_pairs
 from locoman.to.layout import ObjectModel
 from locoman.to.modes import NodeMode, ObjectMode
 from locoman.to.seats import Seat, seat_on, seated_boxes
 from locoman.to.supports import Surface
-from locoman.to.transcription import node_collision_pairs
 
 # S1's shelf (the bounding box of its primitives) and its basket's floor and a wall.
 SHELF = Obstacle("shelf", np.array([2.0, 0.0, 0.775]), 0.0, np.array([0.2, 0.45, 0.775]))

@@ -12,8 +12,8 @@ from locoman.contact.io import CONTACTS, subtask_file
 from locoman.scene import g1
 from locoman.to.inputs import Keyframe, TOInputs, sole_points
 from locoman.to.layout import NodeLayout, ObjectModel
+from locoman.to.loading import _feet_on_object
 from locoman.to.node_parameters import node_parameters
-from locoman.to.pipeline import _feet_on_object
 from locoman.to.schedule import ScheduleCfg, build_schedule
 from locoman.to.supports import Surface
 
@@ -79,7 +79,8 @@ def _foot_reference(kf: Keyframe) -> np.ndarray:
         np.zeros((1, 2, 3)),
         np.tile(np.eye(3), (1, 2, 1, 1)),
     )
-    P = node_parameters(inputs, build_schedule(inputs, ScheduleCfg()), (True, True))
+    schedule = build_schedule(inputs, ScheduleCfg())
+    P = node_parameters(inputs, schedule, keyframe_base=True, keyframe_foot=True)
     par = NodeLayout.of(1).parameters
     on = P[par["kf_foot_on"]].ravel() > 0
     assert on.any()

@@ -13,6 +13,7 @@ import pytest
 from locoman.config.to import ContactCfg
 from locoman.scene import g1
 from locoman.to.collision import KINDS, CollisionCfg, Obstacle
+from locoman.to.collision_pairs import CollisionPair, node_collision_pairs
 from locoman.to.costs import CostWeights
 from locoman.to.inputs import sole_points
 from locoman.to.layout import KINEMATICS, N_KIN, NodeLayout, ObjectModel
@@ -20,7 +21,7 @@ from locoman.to.modes import NodeMode, ObjectMode
 from locoman.to.spheres import FOREARM_LINKS, link_sphere_list
 from locoman.to.supports import Chassis, OnObject, Surface
 from locoman.to.terms.library import g1_terms
-from locoman.to.transcription import Numbers, Transcription, node_collision_pairs, transcribe
+from locoman.to.transcription import Numbers, Transcription, transcribe
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
 NO_SELF = CollisionCfg(self_pairs=[])
@@ -470,7 +471,6 @@ def test_a_pair_between_two_nodes_sees_the_spheres_at_the_configuration_there():
     spheres where that configuration puts them (virtual variables of their own), not the
     chord of their centres at the two nodes."""
     from locoman.to.spheres import link_sphere_list
-    from locoman.to.transcription import CollisionPair
 
     knee = link_sphere_list("left_knee_link")[2]
     table = {"centre": np.array([0.6, 0.0, 0.36]), "yaw": 0.0, "half": np.array([0.3, 0.4, 0.36])}

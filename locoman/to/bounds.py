@@ -11,7 +11,20 @@ from locoman.config.to import SolverCfg
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.to.inputs import TOInputs, guiding_keyframe
-from locoman.to.layout import NodeLayout
+from locoman.to.layout import (
+    ANGULAR,
+    FORCE,
+    JOINTS,
+    LINEAR,
+    MOMENT,
+    ORIENTATION,
+    POSITION,
+    TILT,
+    VERTICAL,
+    NodeLayout,
+    limb,
+    part,
+)
 from locoman.to.modes import NodeMode
 from locoman.to.schedule import Schedule
 
@@ -39,19 +52,17 @@ def _sanity_bounds(layout: NodeLayout, lo: np.ndarray, hi: np.ndarray, weight: f
         (layout.object_variables(j, "q"), layout.object_variables(j, "v"), TILT_MAX)
         for j in range(layout.n_objects)
     ]
-    for q_slice, v_slice, tilt in pairs:
-        q, v = q_slice.start, v_slice.start
-        lo[q + 3 : q + 5], hi[q + 3 : q + 5] = -tilt, tilt
-        lo[v : v + 3], hi[v : v + 3] = -LINEAR_SPEED_MAX, LINEAR_SPEED_MAX
-        lo[v + 3 : v + 6], hi[v + 3 : v + 6] = -ANGULAR_SPEED_MAX, ANGULAR_SPEED_MAX
+    for q, v, tilt in pairs:
+        lo[part(q, TILT)], hi[part(q, TILT)] = -tilt, tilt
+        lo[part(v, LINEAR)], hi[part(v, LINEAR)] = -LINEAR_SPEED_MAX, LINEAR_SPEED_MAX
+        lo[part(v, ANGULAR)], hi[part(v, ANGULAR)] = -ANGULAR_SPEED_MAX, ANGULAR_SPEED_MAX
     force = 2.0 * weight
-    wrenches = [var["foot_wrench"], var["hand_wrench"]] + [
-        layout.object_variables(j, "support_wrench") for j in range(layout.n_objects)
-    ]
-    for block in wrenches:
-        for f in range(block.start, block.stop, 6):
-            lo[f : f + 3], hi[f : f + 3] = -force, force
-            lo[f + 3 : f + 6], hi[f + 3 : f + 6] = -WRENCH_LEVER * force, WRENCH_LEVER * force
+    wrenches = [limb(var[name], i) for name in ("foot_wrench", "hand_wrench") for i in range(2)]
+    wrenches += [layout.object_variables(j, "support_wrench") for j in range(layout.n_objects)]
+    for wrench in wrenches:
+        lo[part(wrench, FORCE)], hi[part(wrench, FORCE)] = -force, force
+        moment = WRENCH_LEVER * force
+        lo[part(wrench, MOMENT)], hi[part(wrench, MOMENT)] = -moment, moment
 
 
 def _rest_wrench(mass: float) -> np.ndarray:
@@ -83,16 +94,15 @@ def bounds(
     def fix(where, k, value=0.0) -> None:
         lo[where, k] = hi[where, k] = value
 
-    q, v = var["q"], var["v"]
-    lo[q.start + 6 : q.stop], hi[q.start + 6 : q.stop] = (
+    q, v, dt = var["q"], var["v"], var["dt"]
+    lo[part(q, JOINTS)], hi[part(q, JOINTS)] = (
         model.lowerPositionLimit[7:, None],
         model.upperPositionLimit[7:, None],
     )
-    lo[v.start + 6 : v.stop], hi[v.start + 6 : v.stop] = (
+    lo[part(v, JOINTS)], hi[part(v, JOINTS)] = (
         -model.velocityLimit[6:, None],
         model.velocityLimit[6:, None],
     )
-    dt = var["dt"].start
     lo[dt], hi[dt] = cfg.dt_bounds
     lo[var["alpha"]], hi[var["alpha"]] = 0.0, 1.0 if homotopy else 0.0
     fix(dt, -1, cfg.dt_bounds[0])
@@ -107,7 +117,7 @@ def bounds(
         fix(ovar(j, "v"), -1)
         if modes[-1].carried(j):
             grasped = inputs.keyframes[schedule.subtask_of(n - 1)].object_poses[j]
-            lo[ovar(j, "q").start + 2, -1] = grasped[2] + end_lift_m
+            lo[part(ovar(j, "q"), VERTICAL), -1] = grasped[VERTICAL] + end_lift_m
     if slack_max_m is not None:
         slacks = [var["foot_slack"], var["hand_slack"]]
         slacks += [ovar(j, "support_slack") for j in range(layout.n_objects)]
@@ -116,17 +126,14 @@ def bounds(
     for k, mode in enumerate(modes):
         last = k == n - 1
         for i in range(2):
-            foot = var["foot_wrench"].start + 6 * i
-            hand = var["hand_wrench"].start + 6 * i
             if not mode.feet[i] or last:
-                fix(slice(foot, foot + 6), k)
+                fix(limb(var["foot_wrench"], i), k)
             if mode.hands[i] is None or last:
-                fix(slice(hand, hand + 6), k)
+                fix(limb(var["hand_wrench"], i), k)
             if not mode.feet[i] or k == 0:
-                fix(var["foot_slack"].start + i, k)
+                fix(limb(var["foot_slack"], i), k)
             if mode.hands[i] is None:
-                s = var["hand_slack"].start + 3 * i
-                fix(slice(s, s + 3), k)
+                fix(limb(var["hand_slack"], i), k)
         for j, obj_mode in enumerate(mode.objects):
             support = ovar(j, "support_wrench")
             if not obj_mode.active:
@@ -188,29 +195,30 @@ def initial_guess(
         use_kf = cfg.warm_start and k > 0
         shift = push_shift(inputs, schedule, k) if use_kf else np.zeros(3)
         X[var["q"], k] = kf.q35 if use_kf else inputs.q_start
-        X[var["q"].start : var["q"].start + 3, k] += shift
+        X[part(var["q"], POSITION), k] += shift
         weight = robot_mass * GRAVITY
         pushed = [kf.object, *mode.riders(kf.object)] if kf.object is not None else []
         for j, obj in enumerate(inputs.objects):
             active = use_kf and mode.objects[j].active
             X[ovar(j, "q"), k] = kf.object_poses[j] if active else inputs.object_starts[j]
             if active and j in pushed:
-                X[ovar(j, "q").start : ovar(j, "q").start + 3, k] += shift
+                X[part(ovar(j, "q"), POSITION), k] += shift
             if mode.carried(j):
                 weight += obj.mass * GRAVITY
-                R_object = rpy_to_matrix(X[ovar(j, "q"), k][3:6])
+                R_object = rpy_to_matrix(X[part(ovar(j, "q"), ORIENTATION), k])
                 half = 0.5 * obj.mass * GRAVITY
                 for i in range(2):
-                    s = var["hand_wrench"].start + 6 * i
                     normal = R_object @ inputs.hand_frames[j, i][:, 2]
                     squeeze = SQUEEZE_MARGIN * half / obj.friction
-                    X[s : s + 3, k] = np.r_[0.0, 0.0, -half] + squeeze * normal
+                    force = part(limb(var["hand_wrench"], i), FORCE)
+                    X[force, k] = np.r_[0.0, 0.0, -half] + squeeze * normal
             elif mode.supported(j):
                 load = _carried_load(inputs, mode, j)
-                X[ovar(j, "support_wrench").start + 2, k] = load * GRAVITY
+                X[part(ovar(j, "support_wrench"), VERTICAL), k] = load * GRAVITY
         down = [i for i in range(2) if mode.feet[i]]
         for i in down:
-            X[var["foot_wrench"].start + 6 * i + 2, k] = weight / len(down)
+            X[part(limb(var["foot_wrench"], i), VERTICAL), k] = weight / len(down)
             if mode.feet_on[i] is not None:  # the object stood on carries it to its support
-                X[ovar(mode.feet_on[i], "support_wrench").start + 2, k] += weight / len(down)
+                support = ovar(mode.feet_on[i], "support_wrench")
+                X[part(support, VERTICAL), k] += weight / len(down)
     return X

@@ -109,7 +109,7 @@ class CollisionCfg:
             a fixed object, the floor) that the checks found an arm's link against: every
             link from shoulder to palm against every box of that body, at up to this many
             nodes either side of where it was found while each hand's contact stays the
-            same (``pair_search.arm_pairs``); the rounds' pairs cover the one link and box,
+            same (``found_pairs.arm_pairs``); the rounds' pairs cover the one link and box,
             and moved the penetration to the next. 0 (the default): the pairs found, as
             they are; on S1's three Fig. 6 cells that restart, widening converged as often
             as not (docs/trajectory-optimisation.md).

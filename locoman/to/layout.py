@@ -55,6 +55,32 @@ def object_key(j: int, quantity: str) -> str:
     return f"object{j}_{quantity}"
 
 
+# Named parts of a node's blocks, relative to a block's start (:func:`part`).
+POSITION = slice(0, 3)  # of a q = (p, rpy) [m]
+ORIENTATION = slice(3, 6)  # roll, pitch, yaw of a q [rad]
+TILT = slice(3, 5)  # roll, pitch of a q [rad]
+JOINTS = slice(6, NQ)  # of the robot's q [rad] or v [rad/s]
+LINEAR = slice(0, 3)  # of a v = (dp/dt, drpy/dt) [m/s]
+ANGULAR = slice(3, 6)  # Euler rates of a v [rad/s]
+FORCE = slice(0, 3)  # of a wrench [N]
+MOMENT = slice(3, 6)  # of a wrench [N m]
+VERTICAL = 2  # the z entry of a position or a force
+
+
+def part(block: slice, within: slice | int) -> slice | int:
+    """``within``, indices relative to ``block``'s start, as indices of the node's block."""
+    if isinstance(within, slice):
+        return slice(block.start + within.start, block.start + within.stop)
+    return block.start + within
+
+
+def limb(block: slice, i: int) -> slice:
+    """Limb ``i``'s (0: left, 1: right) share of a block that holds both limbs' in turn
+    (``foot_wrench``, ``hand_slack``, ``hand_points``, ...)."""
+    size = (block.stop - block.start) // 2
+    return slice(block.start + i * size, block.start + (i + 1) * size)
+
+
 @dataclasses.dataclass(frozen=True)
 class NodeLayout:
     """One node's decision variables and parameters for a scene with ``n_objects`` rigid

@@ -8,21 +8,21 @@ from __future__ import annotations
 import numpy as np
 
 from locoman.to.inputs import TOInputs, base_yaw
-from locoman.to.layout import NodeLayout
+from locoman.to.layout import NodeLayout, limb
 from locoman.to.modes import node_modes, stood_on, supports_per_node
 from locoman.to.schedule import Schedule
 
 
 def node_parameters(
-    inputs: TOInputs, schedule: Schedule, keyframe_costs: tuple[bool, bool]
+    inputs: TOInputs, schedule: Schedule, *, keyframe_base: bool, keyframe_foot: bool
 ) -> np.ndarray:
     """(n_params, N): references and switches per node.
 
     The yaw reference goes linearly, over each subtask's nodes, from the previous keyframe's
     yaw to the subtask's. (9) is on at each keyframe node, (10) on the stance nodes around
-    it (after the subtask's last step before it, before its next); ``keyframe_costs`` =
-    (base, foot) switches them; a keyframe that does not guide has neither. A subtask's
-    goal holds its object at the subtask's last node. The hands' contacts are
+    it (after the subtask's last step before it, before its next), where ``keyframe_base``
+    and ``keyframe_foot`` switch them on; a keyframe that does not guide has neither. A
+    subtask's goal holds its object at the subtask's last node. The hands' contacts are
     those on the object they touch, elsewhere on the first object a hand touches.
     """
     layout = NodeLayout.of(len(inputs.objects))
@@ -34,15 +34,15 @@ def node_parameters(
     for i, kf in enumerate(inputs.keyframes):
         nodes = [k for k in range(1, n) if schedule.subtask_of(k) == i]
         yaws = np.linspace(yaw_before, base_yaw(kf.q35), len(nodes) + 1)[1:]
-        P[par["yaw_ref"].start, nodes] = yaws
+        P[par["yaw_ref"], nodes] = yaws
         if i == 0:
-            P[par["yaw_ref"].start, 0] = yaw_before
+            P[par["yaw_ref"], 0] = yaw_before
         yaw_before = base_yaw(kf.q35)
         node = kf_nodes[i]
-        if keyframe_costs[0] and kf.guides:
+        if keyframe_base and kf.guides:
             P[par["kf_base_on"], node] = 1.0
             P[par["kf_base"], node] = np.r_[kf.q35[2], kf.q35[3:6]]
-        if keyframe_costs[1] and kf.guides:
+        if keyframe_foot and kf.guides:
             # The stance around the keyframe: after the last step before it, up to the next
             # step (a push walks on after its keyframe).
             swings = [k for k in nodes if not schedule.phase(k).stance]
@@ -57,19 +57,17 @@ def node_parameters(
     for k, row in enumerate(supports_per_node(inputs, schedule)):
         for j, (_, height) in enumerate(row):
             P[opar(j, "support_z"), k] = height
-    surface = par["foot_surface_z"].start
     for k in range(n):
         phase, step = schedule.phase(k), stood_on(inputs, schedule.subtask_of(k))
         for i in range(2):
             # A raised foot stands on, or a swinging one lands on, the stepped-on top.
             if phase.feet_raised[i] and step is not None:
-                P[surface + i, k] = step.step_height
+                P[limb(par["foot_surface_z"], i), k] = step.step_height
     modes = node_modes(inputs, schedule)
     first = next((j for m in modes for j in m.hands if j is not None), 0)
-    points, frames = par["hand_points"].start, par["hand_frames"].start
     for k, mode in enumerate(modes):
         for i, j in enumerate(mode.hands):
             j = first if j is None else j
-            P[points + 3 * i : points + 3 * i + 3, k] = inputs.hand_points[j, i]
-            P[frames + 9 * i : frames + 9 * i + 9, k] = inputs.hand_frames[j, i].ravel(order="F")
+            P[limb(par["hand_points"], i), k] = inputs.hand_points[j, i]
+            P[limb(par["hand_frames"], i), k] = inputs.hand_frames[j, i].ravel(order="F")
     return P

@@ -26,6 +26,7 @@ from locoman.to.assembly import (
     structure_key,
 )
 from locoman.to.bounds import bounds, initial_guess
+from locoman.to.collision_pairs import CollisionPair
 from locoman.to.costs import averaged_over_nodes
 from locoman.to.inputs import TOInputs, guided_by
 from locoman.to.modes import node_modes
@@ -33,9 +34,7 @@ from locoman.to.node_parameters import node_parameters
 from locoman.to.schedule import build_schedule
 from locoman.to.supports import Support
 from locoman.to.terms.library import all_kinds, g1_terms
-from locoman.to.transcription import CollisionPair, Numbers, Transcription, transcribe
-
-KeyframeCosts = tuple[bool, bool]  # (9), (10) on
+from locoman.to.transcription import Numbers, Transcription, transcribe
 
 
 @dataclasses.dataclass(frozen=True)
@@ -140,13 +139,9 @@ class TrajectoryOptimizer:
         if self.switch_at is not None and self.switch_at >= solver.max_iterations:
             self.switch_at = None
         self._nlps: dict[tuple[str, str], BlockNLP] = {}
-        self.transcription = self.transcribe(self.keyframe_costs)
+        self.transcription = self.transcribe()
         self.nlp = self._nlp(self.transcription, solver.hessian)
         self._built_s = time.perf_counter() - tic
-
-    @property
-    def keyframe_costs(self) -> KeyframeCosts:
-        return (self.cfg.keyframe_base, self.cfg.keyframe_foot)
 
     @property
     def build_time_s(self) -> float:
@@ -159,15 +154,18 @@ class TrajectoryOptimizer:
         )
 
     def transcribe(
-        self,
-        keyframe_costs: KeyframeCosts,
-        numbers: Numbers | None = None,
-        pairs: list[CollisionPair] | None = None,
+        self, numbers: Numbers | None = None, pairs: list[CollisionPair] | None = None
     ) -> Transcription:
-        """The problem as data with these switches and numbers (default: the optimizer's)."""
+        """The problem as data with these numbers (default: the optimizer's) and the
+        configuration's keyframe costs (9), (10)."""
         numbers = numbers or self.numbers
         inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
-        P = node_parameters(inputs, self.schedule, keyframe_costs)
+        P = node_parameters(
+            inputs,
+            self.schedule,
+            keyframe_base=self.cfg.keyframe_base,
+            keyframe_foot=self.cfg.keyframe_foot,
+        )
         return transcribe(self.modes, P, numbers, self.robot, pairs)
 
     def _nlp(
@@ -209,7 +207,6 @@ class TrajectoryOptimizer:
 
     def solve(
         self,
-        keyframe_costs: KeyframeCosts | None = None,
         numbers: Numbers | None = None,
         warm_start: Trajectory | None = None,
         pairs: list[CollisionPair] | None = None,
@@ -218,7 +215,6 @@ class TrajectoryOptimizer:
         """Solve; a failed solve is a trajectory with ``success`` False, not an exception.
 
         Args:
-            keyframe_costs: (9), (10) on; default: the configuration's.
             numbers: Other weights, objects' masses, frictions (another grid cell); the
                 assembled NLP is reused where the structure is the same.
             warm_start: A solution of the same variables (another cell of a grid, the
@@ -229,10 +225,9 @@ class TrajectoryOptimizer:
             hessian: The Hessian (:data:`locoman.to.assembly.HESSIANS`) of this solve;
                 default: the configuration's, with its switch to the exact one.
         """
-        keyframe_costs = keyframe_costs or self.keyframe_costs
         numbers = numbers or self.numbers
         tic = time.perf_counter()
-        tr = self.transcribe(keyframe_costs, numbers, pairs)
+        tr = self.transcribe(numbers, pairs)
         hessian = hessian or self.cfg.solver.hessian
         switch_at = self.switch_at if hessian != "exact" else None
         nlp = self._nlp(tr, hessian)
