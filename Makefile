@@ -31,20 +31,15 @@ $(LEARNED): $(STAMP)
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev,learned]"
 	touch $(LEARNED)
 
-# The DAG in two arms at once, one per core: `tiny` to its figures; S1, S2 and paper B. DVC
-# releases its repo lock while a stage's command runs; each arm names its stages in order (`-s`),
-# since a plain `dvc repro` of a target would also ask to write `validate`'s output, which the
-# other arm reads. The last `dvc repro` is the authority: it runs whatever an arm left (a lock it
-# could not take, a failed stage, whose error it shows).
+# The DAG in two arms at once, one per core: `tiny` to its figures; S1, S2 and paper B; then
+# `dvc repro` runs whatever an arm left (`locoman/repro.py` says why it is done this way).
 # `tiny`'s solve compiles the G1's terms once for all; its figures (the longest item) start next.
 CHAIN := scene generate masks clouds contacts retarget solve evaluate
 ARM_TINY := $(filter-out evaluate@tiny,$(CHAIN:%=%@tiny)) figures@tiny evaluate@tiny
 ARM_REST := $(CHAIN:%=%@s1_basket) $(CHAIN:%=%@s2_trolley) scene@mm_pick_place demos kmp_fit hqp_replay
 run: setup
 	$(BIN)/dvc repro validate
-	@( $(BIN)/dvc repro -s $(ARM_TINY) 2>&1 | sed -u 's/^/[tiny] /' ) & \
-	 ( $(BIN)/dvc repro -s $(ARM_REST) 2>&1 | sed -u 's/^/[s1 s2 B] /' ); wait
-	$(BIN)/dvc repro
+	$(BIN)/python -m locoman.repro "$(ARM_TINY)" "$(ARM_REST)"
 
 # Two pytest-xdist workers, a test file on one: the end-to-end file (tiny's DVC subgraph, then
 # grid cells on its artifacts, in order) on one, the other files on whichever is free; a plain
