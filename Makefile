@@ -31,14 +31,16 @@ $(LEARNED): $(STAMP)
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev,learned]"
 	touch $(LEARNED)
 
-# The DAG in two arms at once, one per core: `tiny` to its figures; S1, S2 and paper B; then
-# `dvc repro` runs whatever an arm left (`locoman/repro.py` says why it is done this way).
-# `tiny`'s solve compiles the G1's terms once for all; its figures (the longest item) start next.
+# The DAG in two arms at once, one per core, then `dvc repro` for whatever an arm left
+# (`locoman/repro.py` says why it is done this way). `tiny`'s solve goes first, alone: it
+# compiles the G1's terms for every solve after it. Then `tiny`'s figures (two grid jobs, the
+# longest item) and paper B on one arm; S1 and S2 on the other.
 CHAIN := scene generate masks clouds contacts retarget solve evaluate
-ARM_TINY := $(filter-out evaluate@tiny,$(CHAIN:%=%@tiny)) figures@tiny evaluate@tiny
-ARM_REST := $(CHAIN:%=%@s1_basket) $(CHAIN:%=%@s2_trolley) scene@mm_pick_place demos kmp_fit hqp_replay
+HEAD := validate $(filter-out evaluate@tiny,$(CHAIN:%=%@tiny))
+ARM_TINY := figures@tiny evaluate@tiny scene@mm_pick_place demos kmp_fit hqp_replay
+ARM_REST := $(CHAIN:%=%@s1_basket) $(CHAIN:%=%@s2_trolley)
 run: setup
-	$(BIN)/dvc repro validate
+	$(BIN)/dvc repro -s $(HEAD)
 	$(BIN)/python -m locoman.repro "$(ARM_TINY)" "$(ARM_REST)"
 
 # Two pytest-xdist workers, a test file on one: the end-to-end file (tiny's DVC subgraph, then
