@@ -3,9 +3,15 @@ stage does not."""
 
 from __future__ import annotations
 
+import re
+import shlex
+import subprocess
 import sys
+from pathlib import Path
 
 from locoman.repro import lock_failure, run_arm
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _script(tmp_path, body: str) -> list[str]:
@@ -63,3 +69,36 @@ sys.exit(1)
 def test_an_arm_that_keeps_losing_gives_up(tmp_path):
     command = _script(tmp_path, 'print("Unable to acquire lock"); raise SystemExit(255)\n')
     assert run_arm(command, "arm 1", attempts=3, backoff_s=0.0) == 255
+
+
+def _make_run_plan() -> tuple[list[str], list[list[str]]]:
+    """The stages `make run` names: its serial head and its arms, from `make -n run`."""
+    lines = subprocess.run(
+        ["make", "-n", "run"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.splitlines()
+    head = next(line for line in lines if "dvc repro -s" in line).split("-s", 1)[1].split()
+    arms = next(line for line in lines if "-m locoman.repro" in line)
+    return head, [arm.split() for arm in shlex.split(arms)[3:]]
+
+
+def _dvc(*args: str) -> str:
+    dvc = Path(sys.executable).with_name("dvc")
+    return subprocess.run([dvc, *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+
+
+def test_make_run_runs_every_stage_once_after_its_upstream():
+    """The head and the arms cover the pipeline, no stage on two arms (they would fight over
+    its lock), and each stage after the stages it reads, in the head or earlier in its arm."""
+    head, arms = _make_run_plan()
+    stages = set(_dvc("stage", "list", "--name-only").split())
+    named = head + [s for arm in arms for s in arm]
+    assert sorted(named) == sorted(stages)
+    edges = re.findall(r'"([^"]+)" -> "([^"]+)"', _dvc("dag", "--dot"))
+    for arm in arms:
+        for upstream, stage in edges:
+            if stage in arm:
+                before = head + arm[: arm.index(stage)]
+                assert upstream in before, f"{stage} runs before {upstream}, which it reads"
+    for upstream, stage in edges:
+        if stage in head:
+            assert head.index(upstream) < head.index(stage)
