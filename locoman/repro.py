@@ -52,7 +52,7 @@ def run_arm(
             sys.stdout.write(f"[{prefix}] {line}")
             sys.stdout.flush()
         status = process.wait()
-        if status == 0 or not lock_failure("".join(lines)):
+        if status == 0 or not lock_failure("".join(lines)) or attempt == attempts - 1:
             return status
         sys.stdout.write(f"[{prefix}] lost a DVC lock race; starting again ({attempt + 2})\n")
         time.sleep(backoff_s * (attempt + 1))
