@@ -254,3 +254,21 @@ def test_a_slack_bound_that_is_not_positive_is_refused(raw, value):
         validate(bad)
     bad["solve"]["contact"]["slack_max_m"] = None
     validate(bad)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("settled_change", 0.0, r"settled_change: must be in \(0, 1\)"),
+        ("settled_change", 2.0, r"settled_change: must be in \(0, 1\)"),
+        ("settled_iterations", 0, r"settled_iterations: must be >= 1"),
+    ],
+)
+def test_a_settled_stop_out_of_range_is_refused(raw, key, value, message):
+    """The exact Hessian's acceptable stop: a relative change in (0, 1), iterations >= 1."""
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["solve"]["solver"][key] = value
+    with pytest.raises(ConfigError, match=r"solve\.solver\." + message):
+        validate(bad)
+    bad["solve"]["solver"] |= {"settled_change": None, "settled_iterations": 10}
+    assert validate(bad).solve.solver.settled_change is None

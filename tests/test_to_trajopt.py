@@ -146,6 +146,21 @@ def test_a_stalled_first_phase_goes_on_with_the_exact_hessian_early(tmp_path_fac
     assert alone.cost == pytest.approx(squat.cost, rel=1e-4)
 
 
+def test_a_settled_exact_solve_ends_at_an_acceptable_level(tmp_path_factory, squat):
+    """With a tolerance no solve reaches (1e-14), the exact Hessian's solve ends once its
+    objective has settled at a feasible point with the barrier at its floor: as
+    ``Solved_To_Acceptable_Level``, at the same optimum, sooner than without the stop
+    (IPOPT's own acceptable test: 15 iterations at a scaled error under 1e-6)."""
+    unreachable = {"hessian": "exact", "max_iterations": 300, "tolerance": 1e-14}
+    settled = _optimizer(tmp_path_factory, **unreachable).solve()
+    plain = _optimizer(tmp_path_factory, **unreachable, settled_change=None).solve()
+    assert settled.status == "Solved_To_Acceptable_Level" and settled.success
+    assert settled.iterations < plain.iterations < 300, (settled.iterations, plain.iterations)
+    assert settled.cost == pytest.approx(plain.cost, rel=1e-8)
+    assert settled.cost == pytest.approx(squat.cost, rel=1e-4)
+    assert settled.max_constraint_violation <= 1e-8
+
+
 def test_step_count_is_even_and_bounded_by_length_and_turn():
     cfg = ScheduleCfg(step_length_m=0.25, step_yaw_rad=0.45, step_min_m=0.15)
     feet = np.array([[0.0, 0.1], [0.0, -0.1]])

@@ -103,6 +103,14 @@ class SolverCfg:
             feasibility) the solve goes on with the exact Hessian before
             ``exact_after_iterations`` (1e-3 suits the projected Hessian); None: only
             after them.
+        settled_change: The exact Hessian's solves end as converged at an acceptable
+            level (IPOPT's ``Solved_To_Acceptable_Level``) after ``settled_iterations``
+            iterations in a row with the objective changing by less than this relative
+            amount [-], the constraints within ``constraint_tolerance`` and
+            complementarity under 1e-9: a KKT point whose dual infeasibility stays above
+            ``tolerance`` with IPOPT's barrier at its floor (S2's grid cells cycled there
+            for hundreds of iterations); None: only at ``tolerance``.
+        settled_iterations: How many such iterations in a row.
     """
 
     backend: str = "ipopt_mumps"
@@ -118,6 +126,8 @@ class SolverCfg:
     hessian: str = "gauss_newton"
     exact_after_iterations: int | None = 150
     exact_when_stalled: float | None = None
+    settled_change: float | None = 1e-7
+    settled_iterations: int = 10
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -136,6 +146,10 @@ class SolverCfg:
             errors.append(("max_wall_time_s", "must be > 0 s, or null for no limit"))
         if self.hessian not in HESSIANS:
             errors.append(("hessian", f"must be one of {list(HESSIANS)}"))
+        if self.settled_change is not None and not 0.0 < self.settled_change < 1.0:
+            errors.append(("settled_change", "must be in (0, 1), or null for never"))
+        if self.settled_iterations < 1:
+            errors.append(("settled_iterations", "must be >= 1"))
         if self.exact_after_iterations is not None and self.exact_after_iterations < 1:
             errors.append(("exact_after_iterations", "must be >= 1, or null for never"))
         if self.exact_when_stalled is not None and not self.exact_when_stalled > 0.0:

@@ -179,13 +179,14 @@ class TrajectoryOptimizer:
                 if self.switch_at is None or hessian == "exact"
                 else {"max_iter": self.switch_at, **self._stall_options()}
             )
+            settled = self._settled_options() if hessian == "exact" else {}
             self._nlps[key] = BlockNLP(
                 transcription.n_x,
                 transcription.blocks,
                 transcription.rows,
                 self.derivatives,
                 hessian,
-                self._ipopt | first,
+                self._ipopt | first | settled,
                 transcription.n_y,
             )
         return self._nlps[key]
@@ -203,6 +204,25 @@ class TrajectoryOptimizer:
             "acceptable_tol": 0.1,
             "acceptable_constr_viol_tol": 1e-2,
             "acceptable_obj_change_tol": change,
+        }
+
+    def _settled_options(self) -> dict:
+        """IPOPT's "acceptable" stop for the exact Hessian's solves
+        (``SolverCfg.settled_change``): ``settled_iterations`` iterations in a row at a
+        feasible point (``constraint_tolerance``) whose objective changes by less than
+        ``settled_change`` and whose complementarity is under 1e-9, which a solve reaches
+        only once IPOPT has pushed its barrier to the floor (1e-11) without meeting its
+        ``tol``. IPOPT's own acceptable level (1e-6) is stricter than that ``tol`` and
+        never ends a solve."""
+        solver = self.cfg.solver
+        if solver.settled_change is None:
+            return {}
+        return {
+            "acceptable_iter": solver.settled_iterations,
+            "acceptable_tol": 1.0,
+            "acceptable_constr_viol_tol": solver.constraint_tolerance,
+            "acceptable_compl_inf_tol": 1e-9,
+            "acceptable_obj_change_tol": solver.settled_change,
         }
 
     def solve(
