@@ -476,6 +476,8 @@ def test_the_figures_and_the_summary_draw_from_records():
     table = summary_csv(records).splitlines()
     assert table[0].split(",") == list(SUMMARY_COLUMNS) and len(table) == 17
     assert "| AllKeyframe | 5 | 0.6 | converged |" in markdown_table(records)
+    records[-1] = {**records[-1], "solver_status": "Solved_To_Acceptable_Level"}
+    assert "| AllKeyframe | 5 | 0.6 | converged (settled) |" in markdown_table(records)
     settings = setting_table(records)
     assert "| Base | 2/2 | 20.00 (20.0-20.0) | 40.0-40.0 | 2/2 |" in settings
     # WarmStart: an error at yaw 0 (no penetration, not converged), not converged at 0.6.

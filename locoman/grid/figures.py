@@ -295,8 +295,14 @@ def _mm(value: float | None) -> str:
     return "-" if value is None else f"{value * 1000:.1f}"
 
 
+# IPOPT's status of a solve that ended on the settled stop (``SolverCfg.settled_change``):
+# converged, marked "settled" in the summaries.
+SETTLED = "Solved_To_Acceptable_Level"
+
+
 def markdown_table(records: Sequence[dict[str, Any]]) -> str:
-    """The summary of one figure as a Markdown table (penetrations in mm)."""
+    """The summary of one figure as a Markdown table (penetrations in mm); a run whose last
+    solve ended on the settled stop reads "converged (settled)"."""
     head = (
         "| run | mass [kg] | yaw [rad] | status | iterations | rounds / pairs found / restarts "
         "| avg pen. [mm] | max pen. [mm] | deepest pair | dynamics residual | goal error [mm] |\n"
@@ -305,6 +311,8 @@ def markdown_table(records: Sequence[dict[str, Any]]) -> str:
     rows = []
     for r in records:
         status = r["status"] + (f" ({r['reason']})" if r.get("reason") else "")
+        if r.get("solver_status") == SETTLED:
+            status += " (settled)"
         residual = r.get("dynamics_residual_max")
         rows.append(
             f"| {r['label']} | {r['box_mass']:g} | {r['initial_yaw']:g} | {status} "
