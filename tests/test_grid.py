@@ -675,6 +675,31 @@ def test_a_grids_records_are_exported_and_restored_where_none_is(tmp_path):
     assert main(["--data-dir", str(fresh), "restore", "tiny", str(kept)]) == 2
 
 
+def test_only_up_to_date_records_are_exported_unless_asked(params, upstream):
+    """A grid restarted after a change holds its older cells' records until they are solved
+    again: ``export`` keeps to the records whose key matches the checkout's (the same key a
+    grid skips on), ``--stale`` takes every one."""
+    from locoman.grid.archive import current_key, export_records, main
+
+    data = upstream.parent
+    fresh, old = CellCfg(run="all"), CellCfg(run="none")
+    for cell, key in ((fresh, current_key(params, fresh, data)), (old, "a key of before")):
+        cell_dir(data, cell).mkdir(parents=True)
+        record = {**_record(cell.run, yaw=0.0), "key": key}
+        (cell_dir(data, cell) / "cell.json").write_text(json.dumps(record))
+    files = export_records(data, "tiny", "fig6", data / "out", current=params)
+    assert [f.name for f in files] == [f"{fresh.name}.json"]
+    everything = export_records(data, "tiny", "fig6", data / "all")
+    assert sorted(f.name for f in everything) == sorted(f"{c.name}.json" for c in (fresh, old))
+    (upstream / "retarget" / "keyframes" / "subtask_0.npz").write_bytes(b"other keyframes")
+    with pytest.raises(ArtifactError, match="holds no up to date cell record"):
+        export_records(data, "tiny", "fig6", data / "none", current=params)
+    assert (
+        main(["--data-dir", str(data), "export", "tiny", "fig6", str(data / "s"), "--stale"]) == 0
+    )
+    assert len(list((data / "s").rglob("*.json"))) == 2
+
+
 def _hold_a_slot(folder: str, log: str) -> None:
     with slot(Path(folder), 2, poll_s=0.01) as i:
         with open(log, "a") as out:

@@ -8,7 +8,10 @@ Usage::
 A cell's record (``cell.json``, :mod:`locoman.grid.cell`) holds its numbers and the keys of
 everything it read; its folder under ``data/<scenario>/grid/`` is not tracked (trajectories,
 logs). ``export`` copies the records of every cell of ``figure`` that has one into
-``<dir>/records/<figure>/<cell>.json``, small enough to commit next to the summary.
+``<dir>/records/<figure>/<cell>.json``, small enough to commit next to the summary; only
+the records whose key matches the checkout's parameters, upstream files and code (a grid
+restarted after a change holds its older cells' records until they are solved again;
+``--stale`` exports those too).
 ``restore`` copies them back where no record is: a grid launched afterwards skips each
 restored cell whose key still matches (the same parameters, upstream files and code) and
 solves the others, so a grid that takes longer than one sitting, or runs partly on a
@@ -26,8 +29,19 @@ from pathlib import Path
 from typing import Any
 
 from locoman.artifacts import write_json_atomic
+from locoman.config import RootCfg, load_params
 from locoman.errors import ArtifactError
-from locoman.grid.cell import RECORD_FILE, CellCfg, cell_dir, read_record
+from locoman.grid.cell import (
+    RECORD_FILE,
+    CellCfg,
+    cell_dir,
+    cell_key,
+    cell_scenario,
+    read_record,
+    solve_key,
+    with_time_limit,
+)
+from locoman.grid.runs import find_run
 
 RECORDS = "records"
 
@@ -46,15 +60,35 @@ def _cell(record: dict[str, Any]) -> CellCfg:
         raise ArtifactError(f"not a cell record (no {exc}): {sorted(record)[:8]}") from exc
 
 
+def current_key(cfg: RootCfg, cell: CellCfg, data_dir: Path) -> str:
+    """The key a record of ``cell`` has when it is up to date with ``cfg``, the upstream
+    files under ``data_dir`` and the code (what :func:`locoman.grid.cell.run_cell` skips).
+
+    Raises:
+        ArtifactError: The upstream artifacts are missing.
+    """
+    solve = find_run(cell.figure, cell.run).apply(cfg.solve, cell.scenario)
+    solve = with_time_limit(solve, cfg.figures.time_limit_s)
+    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
+    upstream = Path(data_dir) / cell.scenario
+    return cell_key(solve_key(cell, scenario, solve, upstream), cfg.evaluate)
+
+
 def export_records(
-    data_dir: Path, scenario: str, figure: str, dest: Path, only: Collection[str] | None = None
+    data_dir: Path,
+    scenario: str,
+    figure: str,
+    dest: Path,
+    only: Collection[str] | None = None,
+    current: RootCfg | None = None,
 ) -> list[Path]:
     """Copy each record of ``figure``'s cells under ``data_dir`` (``only``: of the cells of
-    these names, :attr:`CellCfg.name`) to ``dest/records/<figure>/<cell>.json``; return the
+    these names, :attr:`CellCfg.name`; ``current``: whose key is up to date with these
+    parameters, :func:`current_key`) to ``dest/records/<figure>/<cell>.json``; return the
     files written, sorted.
 
     Raises:
-        ArtifactError: The figure has no cell with a record.
+        ArtifactError: The figure has no cell with a record (an up-to-date one).
     """
     grid = Path(data_dir) / scenario / "grid" / figure
     written = []
@@ -65,11 +99,14 @@ def export_records(
         cell = _cell(record)
         if only is not None and cell.name not in only:
             continue
+        if current is not None and record.get("key") != current_key(current, cell, data_dir):
+            continue
         out = Path(dest) / RECORDS / figure / f"{cell.name}.json"
         write_json_atomic(out, record)
         written.append(out)
     if not written:
-        raise ArtifactError(f"{grid} holds no cell record: run the grid first")
+        up_to_date = " up to date" if current is not None else ""
+        raise ArtifactError(f"{grid} holds no{up_to_date} cell record: run the grid first")
     return sorted(written)
 
 
@@ -111,6 +148,7 @@ def main(argv: list[str]) -> int:
     export.add_argument("scenario")
     export.add_argument("figure")
     export.add_argument("dir", type=Path)
+    export.add_argument("--stale", action="store_true", help="also records not up to date")
     restore = sub.add_parser("restore", help="<dir>/records/ into data/ where none is")
     restore.add_argument("scenario")
     restore.add_argument("dir", type=Path)
@@ -118,7 +156,10 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     try:
         if args.command == "export":
-            files = export_records(args.data_dir, args.scenario, args.figure, args.dir)
+            current = None if args.stale else load_params()
+            files = export_records(
+                args.data_dir, args.scenario, args.figure, args.dir, current=current
+            )
             print(f"{len(files)} records in {args.dir / RECORDS / args.figure}")
         else:
             restored, kept = restore_records(args.data_dir, args.scenario, args.dir)
