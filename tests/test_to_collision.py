@@ -99,8 +99,18 @@ def test_a_touching_pair_keeps_the_sphere_out_with_the_least_margin(local, radiu
 
 def test_two_spheres_follow_the_papers_scaled_penetration():
     a, b = np.zeros(3), np.array([0.3, 0.0, 0.4])
-    p = sphere_sphere_penetration(ca.DM(a), ca.DM(b), 0.25)
-    assert float(p) == pytest.approx((0.5 / 0.25) ** 2 - 1.0)
+    p = sphere_sphere_penetration(ca.DM(a), ca.DM(b), 0.25, 0.1)
+    assert float(p) == pytest.approx((0.5 - 0.25) / 0.1, abs=1e-5)
+
+
+def test_a_deep_sphere_pair_keeps_its_push():
+    """(12)'s gradient keeps its size however deep two spheres are: the paper's d^2 - 1
+    loses it as the centres meet (a wrist stayed 123 mm in the torso)."""
+    a, b = ca.SX.sym("a", 3), ca.DM([0.0, 0.0, 0.0])
+    grad = ca.Function("g", [a], [ca.gradient(sphere_sphere_penetration(a, b, 0.25, 0.1), a)])
+    for depth in (0.2, 0.1, 0.02):
+        norm = float(ca.norm_2(grad(ca.DM([0.25 - depth, 0.0, 0.0]))))
+        assert norm == pytest.approx(1.0 / 0.1, rel=1e-3)
 
 
 @given(st.floats(-2.0, 2.0))

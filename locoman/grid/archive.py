@@ -35,13 +35,10 @@ from locoman.grid.cell import (
     RECORD_FILE,
     CellCfg,
     cell_dir,
+    cell_inputs,
     cell_key,
-    cell_scenario,
     read_record,
-    solve_key,
-    with_time_limit,
 )
-from locoman.grid.runs import find_run
 
 RECORDS = "records"
 
@@ -67,11 +64,7 @@ def current_key(cfg: RootCfg, cell: CellCfg, data_dir: Path) -> str:
     Raises:
         ArtifactError: The upstream artifacts are missing.
     """
-    solve = find_run(cell.figure, cell.run).apply(cfg.solve, cell.scenario)
-    solve = with_time_limit(solve, cfg.figures.time_limit_s)
-    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
-    upstream = Path(data_dir) / cell.scenario
-    return cell_key(solve_key(cell, scenario, solve, upstream), cfg.evaluate)
+    return cell_key(cell_inputs(cfg, cell, data_dir)[3], cfg.evaluate)
 
 
 def export_records(

@@ -194,6 +194,18 @@ def solve_key(cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, upstream: P
     return digest.hexdigest()
 
 
+def cell_inputs(
+    cfg: RootCfg, cell: CellCfg, data_dir: Path
+) -> tuple[Path, ScenarioCfg, SolveCfg, str]:
+    """What ``cell``'s solve reads: its upstream folder, its scenario and solve settings
+    (the run's, time-limited), and their :func:`solve_key`."""
+    upstream = Path(data_dir) / cell.scenario
+    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
+    run = find_run(cell.figure, cell.run)
+    solve = with_time_limit(run.apply(cfg.solve, cell.scenario), cfg.figures.time_limit_s)
+    return upstream, scenario, solve, solve_key(cell, scenario, solve, upstream)
+
+
 def cell_key(solved: str, evaluate: EvaluateCfg) -> str:
     """SHA-256 of everything the cell reads: its ``solved`` key (:func:`solve_key`), the
     evaluation's parameters and the code the evaluation imports beyond the solve's."""
@@ -335,11 +347,7 @@ def run_cell(
         errors.append(("scenario", f"unknown; known: {sorted(cfg.scenarios)}"))
     if errors:
         raise ConfigError("; ".join(f"cell.{k}: {msg}" for k, msg in errors))
-    run = find_run(cell.figure, cell.run)
-    upstream = Path(data_dir) / cell.scenario
-    scenario = cell_scenario(cfg.scenarios[cell.scenario], cell)
-    solve = with_time_limit(run.apply(cfg.solve, cell.scenario), cfg.figures.time_limit_s)
-    solved = solve_key(cell, scenario, solve, upstream)
+    upstream, scenario, solve, solved = cell_inputs(cfg, cell, data_dir)
     key = cell_key(solved, cfg.evaluate)
     final = cell_dir(data_dir, cell)
     previous = read_record(final)
@@ -382,7 +390,7 @@ def run_cell(
     )
     record = {
         **dataclasses.asdict(cell),
-        "label": run.label,
+        "label": find_run(cell.figure, cell.run).label,
         **finite,
         **timing,
         "reevaluated": reuse,

@@ -66,6 +66,17 @@ G1_JOINT_NAMES: tuple[str, ...] = (
 
 FOOT_LINKS = ("left_ankle_roll_link", "right_ankle_roll_link")
 HAND_LINKS = ("left_rubber_hand", "right_rubber_hand")
+# An arm's links, shoulder to palm, without the side's prefix (``left_``, ``right_``).
+ARM_CHAIN = (
+    "shoulder_pitch_link",
+    "shoulder_roll_link",
+    "shoulder_yaw_link",
+    "elbow_link",
+    "wrist_roll_link",
+    "wrist_pitch_link",
+    "wrist_yaw_link",
+    "rubber_hand",
+)
 BASE_LINK = "pelvis"
 
 #: A relaxed standing posture [rad]: knees slightly bent, arms along the body.

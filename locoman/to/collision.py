@@ -1,9 +1,10 @@
 """Collision avoidance of paper A, Sec. IV-D: the scaled penetration (11) and its penalty (12).
 
 The paper scales a point's distance d from the centroid of the penetrated body, an
-ellipsoid, and asks p = d^2 - 1 >= 0 (11). That is what the G1's links get: each is a chain
-of spheres (its MuJoCo collision capsules, as placo uses them), and two spheres are kept
-apart by (11) with d = |c_a - c_b| / (r_a + r_b + margin).
+ellipsoid, and asks p = d^2 - 1 >= 0 (11). The G1's links are chains of spheres (their
+MuJoCo collision capsules, as placo uses them), and two spheres are kept apart by (11) in the
+box pairs' units below, p = (|c_a - c_b| - r_a - r_b - margin) / L: d^2 - 1's gradient
+vanishes when the centres meet, so a deep pair was hardly pushed out.
 
 Boxes (a table, the carried box) are poorly covered by ellipsoids: enclosing the table puts
 its own load inside, inscribing it misses the corners, and a superquadric norm errs by a
@@ -32,19 +33,12 @@ from locoman.scene.rotations import rpy_to_matrix
 
 # The links whose spheres the default self-collision pairs use; the pairs measured most in
 # MuJoCo replays of tiny: the arms against the torso and the hips. Every arm link from the
-# elbow to the palm: without the wrist's roll and pitch links, a solve started away from the
-# keyframes (S2's NoKeyframe, 2.5 kg, 0.6 rad) swung the forearm through the torso between
-# the modelled links (141 mm deep), and the found pairs' rounds spent 1600 iterations on it
-# (docs/trajectory-optimisation.md). The knees against each other are a kind of their own
-# (paper A, S2: "between the knees when walking", with (11)).
-_ARM_LINKS = (
-    "shoulder_yaw_link",
-    "elbow_link",
-    "wrist_roll_link",
-    "wrist_pitch_link",
-    "wrist_yaw_link",
-    "rubber_hand",
-)
+# shoulder's yaw link to the palm: without the wrist's roll and pitch links, a solve started
+# away from the keyframes (S2's NoKeyframe, 2.5 kg, 0.6 rad) swung the forearm through the
+# torso between the modelled links (141 mm deep), and the found pairs' rounds spent 1600
+# iterations on it (docs/trajectory-optimisation.md). The knees against each other are a
+# kind of their own (paper A, S2: "between the knees when walking", with (11)).
+_ARM_LINKS = g1.ARM_CHAIN[g1.ARM_CHAIN.index("shoulder_yaw_link") :]
 _TRUNK_LINKS = ("torso_link", "pelvis", "{side}_hip_roll_link", "{side}_hip_yaw_link")
 _THIGHS = ("hip_roll_link", "hip_yaw_link")
 
@@ -146,7 +140,7 @@ class CollisionCfg:
         margin_m: Clearance added to every pair [m].
         smoothing_m: Log-sum-exp temperature of the box clearance [m]; it may overstate
             the clearance by up to ln(3) times this, so keep it below ``margin_m``.
-        length_m: L, the length that scales a box's penetration [m].
+        length_m: L, the length that scales a pair's penetration [m] (boxes and spheres).
         softness: Width, in p, over which (12)'s min(p, 0) is smoothed [-]
             (:func:`penetration_residual`); 0.01 is about a millimetre on a box.
     """
@@ -336,10 +330,18 @@ def sphere_ellipsoid_penetration(
     return ca.sumsqr(x / (half + radius + cfg.margin_m)) - 1.0
 
 
-def sphere_sphere_penetration(a: ca.SX, b: ca.SX, radius: float) -> ca.SX:
-    """(11) of two spheres whose radii (and margin) sum to ``radius``: d = |a - b| / radius,
-    p = d^2 - 1."""
-    return ca.sumsqr(a - b) / radius**2 - 1.0
+def sphere_sphere_penetration(
+    a: ca.SX, b: ca.SX, radius: ca.SX | float, length: ca.SX | float
+) -> ca.SX:
+    """(11) of two spheres whose radii (and margin) sum to ``radius`` [m], in the box pairs'
+    units: p = (|a - b| - radius) / L, L = ``length`` [m] (|.| smoothed over 1 mm).
+
+    The paper's d^2 - 1, d = |a - b| / radius, saturates at -1 as the centres meet, and its
+    gradient 2 d grad d vanishes there, so (12) hardly pushed a deep pair out: S2's Foot cell
+    at 2.5 kg, 0.6 rad ended its first solve with a wrist 123 mm in the torso and took 2 153
+    iterations to converge, failing a check; with this p, whose gradient keeps its size at
+    any depth, 236 iterations and every check passed (docs/performance.md)."""
+    return (ca.sqrt(ca.sumsqr(a - b) + 1e-6) - radius) / length
 
 
 def penetration_residual(p: ca.SX, softness: float) -> ca.SX:

@@ -52,22 +52,7 @@ WRIST_LINKS = tuple(
 # 1.2 rad) found the right palm in the basket's back wall, then in its right wall, the
 # shoulder in the shelf's top, each round's pairs pushing the arm into the next link's or
 # box's blind spot.
-ARM_LINKS = tuple(
-    tuple(
-        f"{side}_{link}"
-        for link in (
-            "shoulder_pitch_link",
-            "shoulder_roll_link",
-            "shoulder_yaw_link",
-            "elbow_link",
-            "wrist_roll_link",
-            "wrist_pitch_link",
-            "wrist_yaw_link",
-            "rubber_hand",
-        )
-    )
-    for side in ("left", "right")
-)
+ARM_LINKS = tuple(tuple(f"{side}_{link}" for link in g1.ARM_CHAIN) for side in ("left", "right"))
 # The floor as a box under it, for a link or a carried object that reaches it.
 FLOOR_BOX = Obstacle("floor", np.array([0.0, 0.0, -0.5]), 0.0, np.array([50.0, 50.0, 0.5]))
 

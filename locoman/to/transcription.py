@@ -641,7 +641,8 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
         k = pair.node
         x = _pair_inputs(at, k, pair)
         if pair.geometry == "sphere_sphere":
-            p = {"radius": pair.sphere.radius + pair.other.radius + cfg.margin_m}
+            radius = pair.sphere.radius + pair.other.radius + cfg.margin_m
+            p = {"radius": radius, "length": cfg.length_m}
         else:
             p = dict(pair.numbers)
             if pair.sphere is not None:

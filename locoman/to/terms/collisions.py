@@ -4,7 +4,7 @@ holds the geometry).
 
 Geometries (what is kept out of what):
 
-- ``sphere_sphere``: two robot spheres (lifted centres), d = |a - b| / (r_a + r_b + margin);
+- ``sphere_sphere``: two robot spheres (lifted centres), p = (|a - b| - r_a - r_b - margin) / L;
 - ``sphere_object_box``: a robot sphere and a box fixed in a moving object's frame;
 - ``sphere_fixed_box``: a robot sphere and a fixed box (an obstacle);
 - ``object_point_fixed_box``: a point fixed in a moving object (a carried box's corner) and
@@ -43,7 +43,7 @@ PENALTY_NUMBERS = {"weight": 1, "softness": 1}
 
 # geometry -> (x slots, p slots); ``c``: a robot sphere's lifted centre.
 GEOMETRIES: dict[str, tuple[dict[str, int], dict[str, int]]] = {
-    "sphere_sphere": ({"a": 3, "b": 3}, {"radius": 1}),
+    "sphere_sphere": ({"a": 3, "b": 3}, {"radius": 1, "length": 1}),
     "sphere_object_box": ({"c": 3, "q_o": 6}, {"radius": 1, "centre": 3, "half": 3}),
     "sphere_fixed_box": ({"c": 3}, {"radius": 1, "centre": 3, "yaw": 1, "half": 3}),
     "object_point_fixed_box": ({"q_o": 6}, {"point": 3, "centre": 3, "yaw": 1, "half": 3}),
@@ -78,7 +78,7 @@ def _sphere_and_box(geometry: str, x, p) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca
 def _penetration(geometry: str, x, p) -> ca.SX:
     """p of (11)."""
     if geometry == "sphere_sphere":
-        return sphere_sphere_penetration(x["a"], x["b"], p["radius"])
+        return sphere_sphere_penetration(x["a"], x["b"], p["radius"], p["length"])
     centre, radius, box, R, half = _sphere_and_box(geometry, x, p)
     cfg = SimpleNamespace(margin_m=p["margin"], smoothing_m=p["smoothing"], length_m=p["length"])
     return sphere_box_penetration(centre, radius, box, R, half, cfg)
