@@ -16,6 +16,7 @@ from locoman.artifacts.mcap_io import read_json_messages
 from locoman.config import load_params
 from locoman.config.schema import ObjectCfg
 from locoman.config.to import scenario_solve
+from locoman.grid.figures import SETTLED
 from locoman.scene.builder import build_scene
 from locoman.scene.io import load_scene_model, write_scene
 from locoman.sim.audit import unscheduled_penetrations
@@ -98,7 +99,8 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir, run_cli):
     assert retarget["unreachable_contacts"] == 0
     assert retarget["hand_contact_residual_max_m"] <= 0.005
     solve = json.loads((root / "solve" / "metrics.json").read_text())
-    assert solve["status"] == "Solve_Succeeded", solve
+    # Converged: to IPOPT's tol, or on the settled stop (SolverCfg.settled_change).
+    assert solve["success"] and solve["status"] in ("Solve_Succeeded", SETTLED), solve
     assert solve["max_constraint_violation"] <= 1e-6
     # Issue 48: the solution checked in MuJoCo; no pair it needs is missing.
     assert solve["collision_rounds"] and solve["pairs_missing"] == []
