@@ -32,15 +32,16 @@ $(LEARNED): $(STAMP)
 	touch $(LEARNED)
 
 # The DAG in two arms at once, one per core, then `dvc repro` for whatever an arm left
-# (`locoman/repro.py` says why it is done this way). `tiny`'s solve goes first, alone: it
-# compiles the G1's terms for every solve after it. Then `tiny`'s figures (two grid jobs, the
-# longest item) and paper B on one arm; S1 and S2 on the other.
-CHAIN := scene generate masks clouds contacts retarget solve evaluate
-HEAD := validate $(filter-out evaluate@tiny,$(CHAIN:%=%@tiny))
-ARM_TINY := figures@tiny evaluate@tiny scene@mm_pick_place demos kmp_fit hqp_replay
-ARM_REST := $(CHAIN:%=%@s1_basket) $(CHAIN:%=%@s2_trolley)
+# (`locoman/repro.py` says why it is done this way). Arm 1: `tiny` to its solve, which
+# compiles the G1's terms for every solve after it, then `tiny`'s figures (two grid jobs, the
+# longest item), its evaluation and paper B. Arm 2: S1's and S2's perception and keyframes
+# meanwhile, then (`after:`) their solves and evaluations.
+INPUTS := scene generate masks clouds contacts retarget
+ARM_TINY := validate $(INPUTS:%=%@tiny) solve@tiny figures@tiny evaluate@tiny \
+	scene@mm_pick_place demos kmp_fit hqp_replay
+ARM_REST := after:validate $(INPUTS:%=%@s1_basket) $(INPUTS:%=%@s2_trolley) after:solve@tiny \
+	solve@s1_basket evaluate@s1_basket solve@s2_trolley evaluate@s2_trolley
 run: setup
-	$(BIN)/dvc repro -s $(HEAD)
 	$(BIN)/python -m locoman.repro "$(ARM_TINY)" "$(ARM_REST)"
 
 # Two pytest-xdist workers, a test file on one: the end-to-end file (tiny's DVC subgraph, then

@@ -1,4 +1,4 @@
-"""`make run`: the pipeline's independent arms at once, then one `dvc repro` as the authority.
+"""`make run`: the pipeline's arms at once, then one `dvc repro` as the authority.
 
 DVC runs a pipeline's stages one after the other, on one core. Its own answer to parallel
 work is several `dvc repro` processes on disjoint parts of the DAG: it releases the repo lock
@@ -11,14 +11,20 @@ while a stage's command runs. Two things make that fragile, and this module hand
   (`Unable to acquire lock`); an arm that failed so is started again (its finished stages are
   up to date and skipped).
 
-An arm that fails otherwise is left: the final `dvc repro` runs what it did not and shows the
-stage's own error.
+An arm may wait for a stage of another arm: the token ``after:<stage>`` holds it until that
+stage has run (or its arm has ended). It is how an arm reads what another writes (S1's scene
+reads `validate`'s output) and how the scenarios' solves wait for the first one, which
+compiles the robot's terms for all of them (a dependency the DAG does not show). An arm that
+fails otherwise is left, and so are the waits on it: the final `dvc repro` runs what was not
+run and shows the stage's own error.
 
-Usage: ``python -m locoman.repro "<stage> <stage> ..." "<stage> ..."`` (one argument per arm).
+Usage: ``python -m locoman.repro "<stage> <stage> ..." "after:<stage> <stage> ..."`` (one
+argument per arm).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 import threading
@@ -28,6 +34,7 @@ from pathlib import Path
 
 LOCK_ERRORS = ("Unable to acquire lock", "is busy, it is being blocked by")
 ATTEMPTS = 5
+AFTER = "after:"
 
 
 def lock_failure(output: str) -> bool:
@@ -35,11 +42,21 @@ def lock_failure(output: str) -> bool:
     return any(message in output for message in LOCK_ERRORS)
 
 
+def _clock(start: float) -> str:
+    minutes, seconds = divmod(int(time.monotonic() - start), 60)
+    return f"{minutes:02d}:{seconds:02d}"
+
+
 def run_arm(
-    command: Sequence[str], prefix: str, attempts: int = ATTEMPTS, backoff_s: float = 2.0
+    command: Sequence[str],
+    prefix: str,
+    attempts: int = ATTEMPTS,
+    backoff_s: float = 2.0,
+    start: float | None = None,
 ) -> int:
-    """Run ``command`` with its output prefixed; again, up to ``attempts`` times, while it fails
-    on a DVC lock. Returns its last exit status."""
+    """Run ``command`` with its output prefixed (and the minutes since ``start``, where
+    given); again, up to ``attempts`` times, while it fails on a DVC lock. Returns its last
+    exit status."""
     status = 0
     for attempt in range(attempts):
         process = subprocess.Popen(
@@ -49,7 +66,8 @@ def run_arm(
         assert process.stdout is not None
         for line in process.stdout:
             lines.append(line)
-            sys.stdout.write(f"[{prefix}] {line}")
+            stamp = "" if start is None else f" {_clock(start)}"
+            sys.stdout.write(f"[{prefix}{stamp}] {line}")
             sys.stdout.flush()
         status = process.wait()
         if status == 0 or not lock_failure("".join(lines)) or attempt == attempts - 1:
@@ -59,18 +77,85 @@ def run_arm(
     return status
 
 
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """A run of an arm's stages in one `dvc repro -s`, after the stages in ``waits``."""
+
+    stages: tuple[str, ...]
+    waits: tuple[str, ...] = ()
+
+
+def plan(arms: Sequence[str]) -> list[list[Step]]:
+    """Each arm (stages and ``after:<stage>`` tokens, in order) as its steps: a step ends
+    where another arm waits for its last stage or where the arm waits itself.
+
+    Raises:
+        ValueError: An arm waits for a stage that no other arm runs, or for nothing.
+    """
+    tokens = [arm.split() for arm in arms]
+    waited = {t.removeprefix(AFTER) for arm in tokens for t in arm if t.startswith(AFTER)}
+    owner = {t: i for i, arm in enumerate(tokens) for t in arm if not t.startswith(AFTER)}
+    plans = []
+    for i, arm in enumerate(tokens):
+        steps: list[Step] = []
+        stages: list[str] = []
+        waits: list[str] = []
+        for token in arm:
+            if token.startswith(AFTER):
+                target = token.removeprefix(AFTER)
+                if owner.get(target, i) == i:
+                    raise ValueError(
+                        f"arm {i + 1} waits for {target!r}, which no other arm runs: name it "
+                        "in the arm that runs it, or drop the wait"
+                    )
+                if stages:
+                    steps.append(Step(tuple(stages), tuple(waits)))
+                    stages, waits = [], []
+                waits.append(target)
+                continue
+            stages.append(token)
+            if token in waited:
+                steps.append(Step(tuple(stages), tuple(waits)))
+                stages, waits = [], []
+        if waits and not stages:
+            raise ValueError(f"arm {i + 1} ends on a wait ({waits}): it has nothing to run after")
+        if stages:
+            steps.append(Step(tuple(stages), tuple(waits)))
+        plans.append(steps)
+    return plans
+
+
 def main(arms: Sequence[str], dvc: str = str(Path(sys.executable).with_name("dvc"))) -> int:
-    """Run each arm's stages (``-s``, in order) beside the others, then `dvc repro` on all
-    (``dvc``: this environment's)."""
+    """Run each arm's stages (``-s``, in order, waiting where it says ``after:``) beside the
+    others, then `dvc repro` on all (``dvc``: this environment's)."""
+    plans = plan(arms)
+    done = {s: threading.Event() for steps in plans for step in steps for s in step.stages}
+    start = time.monotonic()
+
+    def run(steps: list[Step], prefix: str) -> None:
+        try:
+            for step in steps:
+                for stage in step.waits:
+                    done[stage].wait()
+                command = [dvc, "repro", "-s", *step.stages]
+                if run_arm(command, prefix, start=start) != 0:
+                    return
+                for stage in step.stages:
+                    done[stage].set()
+        finally:  # a failed or finished arm holds nobody up
+            for step in steps:
+                for stage in step.stages:
+                    done[stage].set()
+
     threads = [
-        threading.Thread(target=run_arm, args=([dvc, "repro", "-s", *arm.split()], f"arm {i}"))
-        for i, arm in enumerate(arms, 1)
+        threading.Thread(target=run, args=(steps, f"arm {i}")) for i, steps in enumerate(plans, 1)
     ]
     for thread in threads:
         thread.start()
         time.sleep(1.0)  # DVC's first lock: one arm at a time
     for thread in threads:
         thread.join()
+    print(f"[make run] the arms ended after {_clock(start)}; now `dvc repro` on all", flush=True)
     return subprocess.call([dvc, "repro"])
 
 

@@ -9,7 +9,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from locoman.repro import lock_failure, run_arm
+import pytest
+
+from locoman.repro import Step, lock_failure, main, plan, run_arm
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -71,14 +73,53 @@ def test_an_arm_that_keeps_losing_gives_up(tmp_path):
     assert run_arm(command, "arm 1", attempts=3, backoff_s=0.0) == 255
 
 
-def _make_run_plan() -> tuple[list[str], list[list[str]]]:
-    """The stages `make run` names: its serial head and its arms, from `make -n run`."""
+def test_plan_splits_an_arm_where_another_waits_and_where_it_waits():
+    arms = plan(["a b c d", "x after:b y after:d z"])
+    assert arms[0] == [Step(("a", "b")), Step(("c", "d"))]
+    assert arms[1] == [Step(("x",)), Step(("y",), ("b",)), Step(("z",), ("d",))]
+
+
+@pytest.mark.parametrize(
+    ("arms", "message"),
+    [
+        (["a b", "after:c d"], "'c', which no other arm runs"),
+        (["a b", "c after:a"], "ends on a wait"),
+    ],
+)
+def test_plan_refuses_a_wait_it_cannot_keep(arms, message):
+    with pytest.raises(ValueError, match=message):
+        plan(arms)
+
+
+def test_an_arm_waits_for_the_other_arms_stage(tmp_path):
+    """The fake `dvc` logs each call's stages; arm 2's `y` must come after arm 1's `b`, which
+    takes a while."""
+    log = tmp_path / "log"
+    fake = tmp_path / "dvc"
+    fake.write_text(
+        f"""#!{sys.executable}
+import pathlib, sys, time
+stages = sys.argv[3:]
+if "b" in stages:
+    time.sleep(1.5)
+with open({str(log)!r}, "a") as f:
+    f.write(" ".join(stages) + "\\n")
+"""
+    )
+    fake.chmod(0o755)
+    assert main(["a b", "x after:b y"], dvc=str(fake)) == 0
+    calls = log.read_text().splitlines()
+    assert calls.index("a b") < calls.index("y")
+    assert calls[-1] == ""  # the final `dvc repro`, on everything
+
+
+def _make_run_arms() -> list[str]:
+    """The arms `make run` names, from `make -n run`."""
     lines = subprocess.run(
         ["make", "-n", "run"], cwd=ROOT, capture_output=True, text=True, check=True
     ).stdout.splitlines()
-    head = next(line for line in lines if "dvc repro -s" in line).split("-s", 1)[1].split()
-    arms = next(line for line in lines if "-m locoman.repro" in line)
-    return head, [arm.split() for arm in shlex.split(arms)[3:]]
+    line = next(line for line in lines if "-m locoman.repro" in line)
+    return shlex.split(line)[3:]
 
 
 def _dvc(*args: str) -> str:
@@ -86,19 +127,52 @@ def _dvc(*args: str) -> str:
     return subprocess.run([dvc, *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout
 
 
+def _finished_before(plans: list[list[Step]]) -> dict[tuple[int, int], set[str]]:
+    """For each step (arm, index): the stages sure to have run when it starts (its arm's
+    earlier steps, and what the steps it waits for had behind them)."""
+    where = {
+        s: (a, k) for a, steps in enumerate(plans) for k, st in enumerate(steps) for s in st.stages
+    }
+    memo: dict[tuple[int, int], set[str]] = {}
+
+    def before(a: int, k: int) -> set[str]:
+        if (a, k) not in memo:
+            out = before(a, k - 1) | set(plans[a][k - 1].stages) if k else set()
+            for stage in plans[a][k].waits:
+                b, j = where[stage]
+                out |= before(b, j) | set(plans[b][j].stages)
+            memo[(a, k)] = out
+        return memo[(a, k)]
+
+    return {(a, k): before(a, k) for a, steps in enumerate(plans) for k in range(len(steps))}
+
+
 def test_make_run_runs_every_stage_once_after_its_upstream():
-    """The head and the arms cover the pipeline, no stage on two arms (they would fight over
-    its lock), and each stage after the stages it reads, in the head or earlier in its arm."""
-    head, arms = _make_run_plan()
+    """The arms cover the pipeline, no stage on two arms (they would fight over its lock),
+    each stage after the stages it reads (earlier in its arm, or behind an `after:`), and
+    no two arms wait for each other."""
+    plans = plan(_make_run_arms())
+    named = [s for steps in plans for step in steps for s in step.stages]
     stages = set(_dvc("stage", "list", "--name-only").split())
-    named = head + [s for arm in arms for s in arm]
     assert sorted(named) == sorted(stages)
     edges = re.findall(r'"([^"]+)" -> "([^"]+)"', _dvc("dag", "--dot"))
-    for arm in arms:
+    finished = _finished_before(plans)
+    for (a, k), ran in finished.items():
+        step = plans[a][k]
         for upstream, stage in edges:
-            if stage in arm:
-                before = head + arm[: arm.index(stage)]
-                assert upstream in before, f"{stage} runs before {upstream}, which it reads"
-    for upstream, stage in edges:
-        if stage in head:
-            assert head.index(upstream) < head.index(stage)
+            if stage in step.stages:
+                earlier = ran | set(step.stages[: step.stages.index(stage)])
+                assert upstream in earlier, f"{stage} may run before {upstream}, which it reads"
+    for (a, k), ran in finished.items():  # a cycle of waits would need a step before itself
+        assert not set(plans[a][k].stages) & ran
+    assert (
+        "solve@tiny"
+        in finished[
+            next(
+                (a, k)
+                for a, steps in enumerate(plans)
+                for k, st in enumerate(steps)
+                if "solve@s1_basket" in st.stages
+            )
+        ]
+    ), "S1's solve must wait for tiny's, which compiles the G1's terms"
