@@ -31,16 +31,15 @@ $(LEARNED): $(STAMP)
 	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev,learned]"
 	touch $(LEARNED)
 
-# The DAG in two arms at once, one per core, then `dvc repro` for whatever an arm left
-# (`locoman/repro.py` says why it is done this way). Arm 1: `tiny` to its solve, which
-# compiles the G1's terms for every solve after it, then `tiny`'s figures (two grid jobs; the
-# longest item, its naive Fig. 5 cell about 11 min). Arm 2: S1's and S2's perception and
-# keyframes meanwhile, then (`after:`) their solves and evaluations, `tiny`'s evaluation
-# and paper B.
+# The DAG in two arms at once, one per core (`locoman/repro.py` says why it is done this way).
+# Arm 1: `tiny` to its solve, which compiles the G1's terms for every solve after it, then
+# `tiny`'s figures (two grid jobs; the longest item, its naive Fig. 5 cell about 11 min) and
+# evaluation. Arm 2: S1's and S2's perception and keyframes meanwhile, then (`after:`)
+# their solves and evaluations, and paper B.
 INPUTS := scene generate masks clouds contacts retarget
-ARM_TINY := validate $(INPUTS:%=%@tiny) solve@tiny figures@tiny
+ARM_TINY := validate $(INPUTS:%=%@tiny) solve@tiny figures@tiny evaluate@tiny
 ARM_REST := after:validate $(INPUTS:%=%@s1_basket) $(INPUTS:%=%@s2_trolley) after:solve@tiny \
-	solve@s1_basket evaluate@s1_basket solve@s2_trolley evaluate@s2_trolley evaluate@tiny \
+	solve@s1_basket evaluate@s1_basket solve@s2_trolley evaluate@s2_trolley \
 	scene@mm_pick_place demos kmp_fit hqp_replay
 run: setup
 	$(BIN)/python -m locoman.repro "$(ARM_TINY)" "$(ARM_REST)"

@@ -91,26 +91,47 @@ def test_plan_refuses_a_wait_it_cannot_keep(arms, message):
         plan(arms)
 
 
-def test_an_arm_waits_for_the_other_arms_stage(tmp_path):
-    """The fake `dvc` logs each call's stages; arm 2's `y` must come after arm 1's `b`, which
-    takes a while."""
+def _fake_dvc(tmp_path, pipeline: str, fail: str = "") -> tuple[str, Path]:
+    """A `dvc` that logs each `repro`'s arguments, lists ``pipeline``'s stages, takes a while
+    over `b` and fails on ``fail``."""
     log = tmp_path / "log"
     fake = tmp_path / "dvc"
     fake.write_text(
         f"""#!{sys.executable}
-import pathlib, sys, time
+import sys, time
+if sys.argv[1:3] == ["stage", "list"]:
+    print("\\n".join({pipeline.split()!r}))
+    raise SystemExit(0)
 stages = sys.argv[3:]
 if "b" in stages:
     time.sleep(1.5)
 with open({str(log)!r}, "a") as f:
-    f.write(" ".join(stages) + "\\n")
+    f.write(" ".join(sys.argv[2:]) + "\\n")
+raise SystemExit(1 if {fail!r} in stages else 0)
 """
     )
     fake.chmod(0o755)
-    assert main(["a b", "x after:b y"], dvc=str(fake)) == 0
+    return str(fake), log
+
+
+def test_an_arm_waits_for_the_other_arms_stage(tmp_path):
+    """Arm 2's `y` comes after arm 1's `b`, which takes a while; every stage ran, so no
+    final `dvc repro`."""
+    dvc, log = _fake_dvc(tmp_path, "a b x y")
+    assert main(["a b", "x after:b y"], dvc=dvc) == 0
     calls = log.read_text().splitlines()
-    assert calls.index("a b") < calls.index("y")
-    assert calls[-1] == ""  # the final `dvc repro`, on everything
+    assert sorted(calls) == ["-s a b", "-s x", "-s y"]
+    assert calls.index("-s a b") < calls.index("-s y")
+
+
+@pytest.mark.parametrize(("pipeline", "fail"), [("a b x y", "x"), ("a b x y z", "")])
+def test_a_failed_arm_or_an_unnamed_stage_leaves_it_to_dvc_repro(tmp_path, pipeline, fail):
+    dvc, log = _fake_dvc(tmp_path, pipeline, fail)
+    status = main(["a b", "x after:b y"], dvc=dvc)
+    calls = log.read_text().splitlines()
+    assert calls[-1] == ""  # `dvc repro`, on everything
+    assert "-s y" not in calls if fail else "-s y" in calls
+    assert status == 0  # the fake's `dvc repro` succeeds: it is the verdict
 
 
 def _make_run_arms() -> list[str]:
