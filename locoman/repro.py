@@ -26,6 +26,7 @@ argument per arm).
 from __future__ import annotations
 
 import dataclasses
+import re
 import subprocess
 import sys
 import threading
@@ -33,6 +34,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+RUNNING = re.compile(r"Running stage '([^']+)':")
 LOCK_ERRORS = ("Unable to acquire lock", "is busy, it is being blocked by")
 ATTEMPTS = 5
 AFTER = "after:"
@@ -54,28 +56,44 @@ def run_arm(
     attempts: int = ATTEMPTS,
     backoff_s: float = 2.0,
     start: float | None = None,
+    ran: list[tuple[str, float]] | None = None,
 ) -> int:
     """Run ``command`` with its output prefixed (and the minutes since ``start``, where
-    given); again, up to ``attempts`` times, while it fails on a DVC lock. Returns its last
-    exit status."""
+    given); again, up to ``attempts`` times, while it fails on a DVC lock. Each stage that
+    ran, with its wall time [s] (from its `Running stage` line to the next or the end), is
+    appended to ``ran``. Returns the last exit status."""
     status = 0
     for attempt in range(attempts):
         process = subprocess.Popen(
             command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1
         )
         lines = []
+        stage, since = None, 0.0
         assert process.stdout is not None
         for line in process.stdout:
             lines.append(line)
             stamp = "" if start is None else f" {_clock(start)}"
             sys.stdout.write(f"[{prefix}{stamp}] {line}")
             sys.stdout.flush()
+            running = RUNNING.match(line)
+            if running:
+                if stage is not None and ran is not None:
+                    ran.append((stage, time.monotonic() - since))
+                stage, since = running.group(1), time.monotonic()
         status = process.wait()
+        if stage is not None and ran is not None:
+            ran.append((stage, time.monotonic() - since))
         if status == 0 or not lock_failure("".join(lines)) or attempt == attempts - 1:
             return status
         sys.stdout.write(f"[{prefix}] lost a DVC lock race; starting again ({attempt + 2})\n")
         time.sleep(backoff_s * (attempt + 1))
     return status
+
+
+def longest(ran: Sequence[tuple[str, float]], n: int = 8) -> str:
+    """The ``n`` stages that took longest, as one line: ``stage 3.2 min, ...``."""
+    top = sorted(ran, key=lambda item: -item[1])[:n]
+    return ", ".join(f"{stage} {seconds / 60:.1f} min" for stage, seconds in top)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,6 +154,7 @@ def main(arms: Sequence[str], dvc: str = str(Path(sys.executable).with_name("dvc
     start = time.monotonic()
 
     failed: list[str] = []
+    ran: list[tuple[str, float]] = []  # list.append is atomic: the arms share it
 
     def run(steps: list[Step], prefix: str) -> None:
         try:
@@ -143,7 +162,7 @@ def main(arms: Sequence[str], dvc: str = str(Path(sys.executable).with_name("dvc
                 for stage in step.waits:
                     done[stage].wait()
                 command = [dvc, "repro", "-s", *step.stages]
-                if run_arm(command, prefix, start=start) != 0:
+                if run_arm(command, prefix, start=start, ran=ran) != 0:
                     failed.append(prefix)
                     return
                 for stage in step.stages:
@@ -161,8 +180,12 @@ def main(arms: Sequence[str], dvc: str = str(Path(sys.executable).with_name("dvc
         time.sleep(1.0)  # DVC's first lock: one arm at a time
     for thread in threads:
         thread.join()
+    if ran:
+        print(f"[make run] the longest stages: {longest(ran)}", flush=True)
     if not failed and set(done) >= set(stages(dvc)):
-        print(f"[make run] every stage ran, in {_clock(start)}; the pipeline is up to date")
+        print(
+            f"[make run] every arm ran to its end, in {_clock(start)}; the pipeline is up to date"
+        )
         return 0
     print(f"[make run] the arms ended after {_clock(start)}; now `dvc repro` on all", flush=True)
     return subprocess.call([dvc, "repro"])

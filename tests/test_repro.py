@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from locoman.repro import Step, lock_failure, main, plan, run_arm
+from locoman.repro import Step, lock_failure, longest, main, plan, run_arm
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -71,6 +71,23 @@ sys.exit(1)
 def test_an_arm_that_keeps_losing_gives_up(tmp_path):
     command = _script(tmp_path, 'print("Unable to acquire lock"); raise SystemExit(255)\n')
     assert run_arm(command, "arm 1", attempts=3, backoff_s=0.0) == 255
+
+
+def test_each_stage_that_ran_is_timed_from_its_line_to_the_next(tmp_path):
+    command = _script(
+        tmp_path,
+        """import time
+print("Running stage 'a':", flush=True)
+time.sleep(0.6)
+print("Stage 'c' didn't change, skipping")
+print("Running stage 'b':", flush=True)
+""",
+    )
+    ran: list[tuple[str, float]] = []
+    assert run_arm(command, "arm 1", ran=ran) == 0
+    assert [stage for stage, _ in ran] == ["a", "b"]
+    assert ran[0][1] >= 0.5 > ran[1][1]
+    assert longest(ran, n=1) == f"a {ran[0][1] / 60:.1f} min"
 
 
 def test_plan_splits_an_arm_where_another_waits_and_where_it_waits():
