@@ -19,6 +19,7 @@ from locoman.hqp.replay import ReplayLog, ReplayTask
 from locoman.scene.frames import body_frames
 from locoman.scene.mobile_manipulator import ARM_BASE_BODY
 from locoman.sim.foxglove import scene_entities
+from locoman.sim.media import media_quality
 
 #: Rate of the MCAP and the plot tables [Hz]; the npz keeps every control step.
 EXPORT_RATE_HZ = 100.0  # MCAP and figures
@@ -140,7 +141,7 @@ def replay_frames(
     arm_base = model.body(ARM_BASE_BODY).id
     cam = mujoco.MjvCamera()
     cam.distance, cam.elevation, cam.azimuth = 2.5, -25.0, 135.0
-    with mujoco.Renderer(model, height=height, width=width) as renderer:
+    with mujoco.Renderer(media_quality(model), height=height, width=width) as renderer:
         for q in qpos[:: video_step(dt, fps)]:
             data.qpos[:] = q
             mujoco.mj_forward(model, data)

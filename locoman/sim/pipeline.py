@@ -48,6 +48,7 @@ from locoman.sim.evaluate import (
     stance_turn,
     support_slip,
 )
+from locoman.sim.media import media_quality
 from locoman.sim.penetration import CLASSES, HEADLINE, Penetrations, penetrations
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.layout import ObjectModel
@@ -328,6 +329,7 @@ def evaluate_scenario(
     time = np.r_[0.0, np.cumsum(traj["dt"][:-1])]
     write_text_atomic(out_dir / "plots" / "penetration.csv", penetration_csv(time, found))
     if media:
+        media_quality(model)
         bearing = view_bearing(model, traj, cfg.filmstrip_frames)
         strip = filmstrip(model, traj, cfg.filmstrip_frames, bearing)
         write_png(out_dir / "plots" / "filmstrip.png", strip)
