@@ -729,3 +729,44 @@ def test_jobs_of_grids_side_by_side_hold_at_most_their_slots(tmp_path):
     assert {index for _, _, index in events} == {"0", "1"}
     with environment_slot({}):
         pass  # no slots asked for: nothing to wait for
+
+
+def test_a_figures_first_cells_take_their_slots_before_the_next_figure_is_launched(
+    params, monkeypatch
+):
+    """Fig. 5's naive run, the longest cell, must not wait behind Fig. 6's and V-B's first
+    cells: each figure is launched once the previous one's first cells hold their slots (or
+    it has ended)."""
+    import threading
+
+    import locoman.grid.launch as launch_module
+
+    events: list[tuple[float, str]] = []
+    held = threading.Event()
+
+    def fake_launch(scenario, figure, params_file, runs, env):
+        events.append((time.monotonic(), f"launch {figure}"))
+        if figure != "fig5":
+            return
+        folder, n = Path(env["LOCOMAN_GRID_SLOT_DIR"]), int(env[SLOTS_ENV])
+        time.sleep(0.5)  # Hydra and the workers starting
+
+        def hold(i):
+            with slot(folder, n, poll_s=0.01):
+                if i == 0:
+                    events.append((time.monotonic(), "fig5 holds its slots"))
+                held.wait(2.0)
+
+        workers = [threading.Thread(target=hold, args=(i,)) for i in range(n)]
+        for worker in workers:
+            worker.start()
+        time.sleep(0.5)
+        held.set()
+        for worker in workers:
+            worker.join()
+
+    monkeypatch.setattr(launch_module, "launch", fake_launch)
+    launch_module.launch_figures(params, "tiny", ["fig5", "fig6", "vb"])
+    order = [name for _, name in sorted(events)]
+    assert order[:2] == ["launch fig5", "fig5 holds its slots"], order
+    assert set(order[2:]) == {"launch fig6", "launch vb"}

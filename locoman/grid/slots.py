@@ -44,6 +44,22 @@ def slot(folder: Path, n: int, poll_s: float = POLL_S) -> Iterator[int]:
         time.sleep(poll_s)
 
 
+def slots_taken(folder: Path, n: int) -> int:
+    """How many of the ``n`` slots in ``folder`` a job holds now. A look takes a free slot's
+    lock for an instant: a job that asks for it then finds it on its next poll."""
+    taken = 0
+    for i in range(n):
+        path = folder / f"slot{i}.lock"
+        if not path.exists():
+            continue
+        with open(path, "a") as handle:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                taken += 1
+    return taken
+
+
 def slot_environment(folder: Path, n: int) -> dict[str, str]:
     """The variables that make the jobs of a launch share ``n`` slots in ``folder``."""
     return {SLOT_DIR_ENV: str(folder), SLOTS_ENV: str(n)}
