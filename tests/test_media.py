@@ -1,11 +1,11 @@
 """The videos' render quality (:mod:`locoman.sim.media`): cheaper, with the shadows kept."""
 
 import mujoco
-import numpy as np
 
 from locoman.sim.media import MULTISAMPLES, SHADOW_SIZE, media_quality
 
-# A box hovering over a floor, lit from straight above: its shadow lies under it.
+# A box hovering over a floor, lit from straight above: its shadow lies under it, seen from
+# the side just beyond the box.
 SCENE = """
 <mujoco>
   <visual><global offwidth="64" offheight="64"/></visual>
@@ -19,7 +19,7 @@ SCENE = """
 """
 
 
-def _floor_under_the_box(model: mujoco.MjModel, shadows: bool) -> float:
+def _floor_where_the_shadow_falls(model: mujoco.MjModel, shadows: bool) -> float:
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     with mujoco.Renderer(model, height=64, width=64) as renderer:
@@ -35,6 +35,6 @@ def test_the_media_quality_is_set_on_the_model_and_keeps_the_shadows():
     assert media_quality(model) is model
     assert model.vis.quality.shadowsize == SHADOW_SIZE
     assert model.vis.quality.offsamples == MULTISAMPLES
-    lit, shaded = _floor_under_the_box(model, False), _floor_under_the_box(model, True)
+    lit = _floor_where_the_shadow_falls(model, shadows=False)
+    shaded = _floor_where_the_shadow_falls(model, shadows=True)
     assert shaded < 0.8 * lit, (shaded, lit)
-    assert np.isfinite(shaded)

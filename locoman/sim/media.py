@@ -5,9 +5,9 @@ from __future__ import annotations
 import mujoco
 
 # With MuJoCo's defaults (a 4096 px shadow map, 4x multisampling) a 640 x 480 frame of a G1
-# scene takes 0.23 s here (Mesa's software rasteriser), with these 0.08 s; the shadows stay and
-# the pictures differ only in the edges' anti-aliasing (docs/performance.md). The scene's
-# overview (one image) keeps the defaults.
+# scene takes 0.16 s on the idle 2-core machine (Mesa's software rasteriser; 0.23-0.40 s beside
+# other work), with these 0.08 s; the shadows stay and the pictures differ only in the edges'
+# anti-aliasing (benchmarks/render_quality.py). The scene's overview keeps the defaults.
 SHADOW_SIZE = 1024  # [px]
 MULTISAMPLES = 0
 
