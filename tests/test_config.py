@@ -272,3 +272,11 @@ def test_a_settled_stop_out_of_range_is_refused(raw, key, value, message):
         validate(bad)
     bad["solve"]["solver"] |= {"settled_change": None, "settled_iterations": 10}
     assert validate(bad).solve.solver.settled_change is None
+
+
+def test_negative_second_order_corrections_are_refused(raw):
+    """IPOPT's ``max_soc`` counts corrections: 0 or more."""
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["solve"]["solver"]["second_order_corrections"] = -1
+    with pytest.raises(ConfigError, match=r"solve\.solver\.second_order_corrections: must be >= 0"):
+        validate(bad)

@@ -161,6 +161,16 @@ def test_a_settled_exact_solve_ends_at_an_acceptable_level(tmp_path_factory, squ
     assert settled.max_constraint_violation <= 1e-8
 
 
+def test_second_order_corrections_reach_ipopt_and_keep_the_optimum(tmp_path_factory, squat):
+    """IPOPT's ``max_soc`` is the setting's: the squat at the default 0 (16 iterations)
+    and at IPOPT's own 4 (27) take other paths to the same optimum."""
+    corrected = _optimizer(tmp_path_factory, max_iterations=200, second_order_corrections=4)
+    corrected = corrected.solve()
+    assert squat.success and corrected.success, corrected.status
+    assert squat.iterations != corrected.iterations, squat.iterations
+    assert corrected.cost == pytest.approx(squat.cost, rel=1e-6)
+
+
 def test_step_count_is_even_and_bounded_by_length_and_turn():
     cfg = ScheduleCfg(step_length_m=0.25, step_yaw_rad=0.45, step_min_m=0.15)
     feet = np.array([[0.0, 0.1], [0.0, -0.1]])

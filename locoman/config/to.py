@@ -111,6 +111,11 @@ class SolverCfg:
             ``tolerance`` with IPOPT's barrier at its floor (S2's grid cells cycled there
             for hundreds of iterations); None: only at ``tolerance``.
         settled_iterations: How many such iterations in a row.
+        second_order_corrections: IPOPT's ``max_soc``: how many times a trial step the
+            filter rejects is corrected for the constraints' curvature before it is cut
+            back. 0 (default) cuts it back at once: S2 in 456 iterations instead of 594 to
+            the same optimum, S1 in 314 instead of 358, S1's Fig. 6 grid 48 of 48 passing
+            either way (``docs/performance.md``); IPOPT's own default is 4.
     """
 
     backend: str = "ipopt_mumps"
@@ -128,6 +133,7 @@ class SolverCfg:
     exact_when_stalled: float | None = None
     settled_change: float | None = 1e-7
     settled_iterations: int = 10
+    second_order_corrections: int = 0
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -150,6 +156,8 @@ class SolverCfg:
             errors.append(("settled_change", "must be in (0, 1), or null for never"))
         if self.settled_iterations < 1:
             errors.append(("settled_iterations", "must be >= 1"))
+        if self.second_order_corrections < 0:
+            errors.append(("second_order_corrections", "must be >= 0 (IPOPT's default: 4)"))
         if self.exact_after_iterations is not None and self.exact_after_iterations < 1:
             errors.append(("exact_after_iterations", "must be >= 1, or null for never"))
         if self.exact_when_stalled is not None and not self.exact_when_stalled > 0.0:

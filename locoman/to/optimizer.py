@@ -131,6 +131,7 @@ class TrajectoryOptimizer:
             "sb": "yes",
             "mu_strategy": "adaptive",
             "fixed_variable_treatment": "make_parameter",
+            "max_soc": solver.second_order_corrections,
         }
         if solver.max_wall_time_s is not None:
             self._ipopt["max_wall_time"] = float(solver.max_wall_time_s)
