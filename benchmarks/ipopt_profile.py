@@ -1,7 +1,7 @@
 """Where a TO solve's time goes, per IPOPT call: function evaluations against the linear algebra.
 
 Usage: python benchmarks/ipopt_profile.py [--scenarios tiny s1_basket s2_trolley]
-       [--out benchmarks/results/ipopt_profile.json]
+       [--ipopt KEY=VALUE ...] [--out benchmarks/results/ipopt_profile.json]
 
 Runs the ``solve`` stage's work (the first solve, the switch to the exact Hessian, the rounds
 that add found collision pairs) at the defaults of ``params.yaml`` with IPOPT's
@@ -11,7 +11,9 @@ apart), the KKT system's solves (MUMPS's factorisations and back-solves; IPOPT's
 PDSystemSolverTotal) and the rest of IPOPT; with the
 iterations and how many of them needed an inertia correction (a regularised, refactorised
 KKT system: IPOPT's ``lg(rg)`` column). The scenes, contacts and keyframes are the current
-``data/<scenario>`` artifacts (``dvc repro retarget`` first). The solve runs in a child
+``data/<scenario>`` artifacts (``dvc repro retarget`` first). ``--ipopt`` adds IPOPT options
+to the backend's (``mumps_pivot_order=5``: what another ordering of MUMPS costs) and the output
+records them. The solve runs in a child
 process whose standard output (IPOPT writes it from C) goes to a file that is parsed here.
 Times are IPOPT's wall seconds: on a busy machine they include waiting for a core.
 """
@@ -31,7 +33,7 @@ from pathlib import Path
 from locoman.artifacts import write_json_atomic
 
 CHILD = """
-import dataclasses, sys, tempfile
+import json, os, sys, tempfile
 from pathlib import Path
 from locoman.kernels import pin_kernels
 pin_kernels()
@@ -40,6 +42,7 @@ from locoman.config import to as to_cfg
 from locoman.to.pipeline import solve_scenario
 for options in to_cfg.BACKENDS.values():
     options["print_timing_statistics"] = "yes"
+    options.update(json.loads(os.environ["LOCOMAN_IPOPT_OPTIONS"]))
 params = load_params()
 root = Path("data") / sys.argv[1]
 with tempfile.TemporaryDirectory() as tmp:
@@ -98,10 +101,24 @@ def parse(log: str) -> list[dict]:
     return calls
 
 
-def profile(scenario: str) -> dict:
+def option(text: str) -> tuple[str, object]:
+    """``KEY=VALUE`` as IPOPT takes it: an integer, a real or a string."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"{text!r}: write an IPOPT option as KEY=VALUE")
+    for kind in (int, float):
+        try:
+            return key, kind(value)
+        except ValueError:
+            pass
+    return key, value
+
+
+def profile(scenario: str, options: dict[str, object]) -> dict:
     with tempfile.NamedTemporaryFile("w+", suffix=".log") as log:
         tic = time.perf_counter()
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+        env["LOCOMAN_IPOPT_OPTIONS"] = json.dumps(options)
         subprocess.run(
             [sys.executable, "-c", CHILD, scenario],
             stdout=log,
@@ -131,15 +148,17 @@ def profile(scenario: str) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", nargs="+", default=["tiny", "s1_basket", "s2_trolley"])
+    parser.add_argument("--ipopt", nargs="+", type=option, default=[], metavar="KEY=VALUE")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/ipopt_profile.json"))
     args = parser.parse_args()
     results = []
     for scenario in args.scenarios:
-        row = profile(scenario)
+        row = profile(scenario, dict(args.ipopt))
         results.append(row)
         brief = {k: v for k, v in row.items() if k != "calls"}
         print(json.dumps(brief), flush=True)
-    write_json_atomic(args.out, {"command": " ".join(sys.argv), "results": results})
+    record = {"command": " ".join(sys.argv), "ipopt_options": dict(args.ipopt)}
+    write_json_atomic(args.out, record | {"results": results})
 
 
 if __name__ == "__main__":
