@@ -15,6 +15,7 @@ q whose derivatives reach q by the chain rule, not variables IPOPT sees.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Iterable
 
 import numpy as np
@@ -59,10 +60,16 @@ class RobotSphere:
 
 def link_sphere_list(link: str) -> list[RobotSphere]:
     """A link's capsule spheres."""
-    return [
+    return list(_link_spheres(link))
+
+
+@functools.cache
+def _link_spheres(link: str) -> tuple[RobotSphere, ...]:
+    # Made once per link: the pair lists ask for them at every node.
+    return tuple(
         RobotSphere(f"{link}/{i}", float(s.radius), link, index=i)
         for i, s in enumerate(link_spheres(link))
-    ]
+    )
 
 
 def _point(name: str, radius: float, link: str, offset) -> RobotSphere:

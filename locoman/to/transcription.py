@@ -180,6 +180,9 @@ class _Index:
         # virtual indices, after every node's, handed out as the pairs ask for them.
         self.between: dict[tuple[int, float, str], np.ndarray] = {}
         self.n_y = nodes * self.virtual_width
+        # A sphere's entries in a node's virtual block: the pairs ask for them by the
+        # hundred thousand.
+        self._sphere_slots: dict[str, np.ndarray] = {}
 
     def var(self, k: int, name: str) -> np.ndarray:
         return self._at(k, self.layout.variables[name])
@@ -212,7 +215,10 @@ class _Index:
         return self.kin(k, f"{HANDS[i]}_{quantity}")
 
     def sphere(self, k: int, sphere: RobotSphere) -> np.ndarray:
-        return self.virtual(k) + N_KIN + self.spheres.slots(sphere)
+        slots = self._sphere_slots.get(sphere.name)
+        if slots is None:
+            slots = self._sphere_slots[sphere.name] = N_KIN + self.spheres.slots(sphere)
+        return self.virtual(k) + slots
 
     def link_spheres(self, k: int, link: str) -> np.ndarray:
         return self.virtual(k) + N_KIN + self.spheres.link_slots(link)
@@ -635,9 +641,13 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
     """Every pair under its kind's treatment; (13b) at each node with a homotopy pair."""
     touching_margin = math.log(3.0) * cfg.smoothing_m
     homotopy_nodes = set()
+    # The calls of each (geometry, treatment, between) kind, looked up once per kind.
+    calls: dict[tuple[str, str, bool], Calls] = {}
     for pair in pairs:
         treatment = getattr(cfg, pair.kind)
-        kind = collision_kind(pair.geometry, treatment, pair.fraction > 0.0)
+        key = (pair.geometry, treatment, pair.fraction > 0.0)
+        if key not in calls:
+            calls[key] = b.own(collision_kind(*key))
         k = pair.node
         x = _pair_inputs(at, k, pair)
         if pair.geometry == "sphere_sphere":
@@ -662,7 +672,7 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
                 x_next |= {"alpha": at.var(k + 1, "alpha")}
                 homotopy_nodes.add(k + 1)
             x |= {f"{s}_next": v for s, v in x_next.items()}
-        b.own(kind).add(x, p)
+        calls[key].add(x, p)
     for k in sorted(homotopy_nodes):
         b.own(homotopy_weight_kind()).add({"alpha": at.var(k, "alpha")}, {"weight": w.homotopy})
 

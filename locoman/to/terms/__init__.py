@@ -13,6 +13,7 @@ variables and with which numbers, is :mod:`locoman.to.transcription`'s business:
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping, Sequence
 
 import casadi as ca
@@ -65,8 +66,10 @@ class TermKind:
     lower: np.ndarray
     upper: np.ndarray
 
-    @property
+    @functools.cached_property
     def name(self) -> str:
+        # Cached: a transcription asks it once per call (S2: half a million), and CasADi's
+        # Function.name() is a call into C++ each time.
         return self.term.name
 
 
