@@ -525,3 +525,44 @@ def test_a_landing_sole_sinks_no_deeper_than_the_slack_bound(slack_max_m):
     for z, inside in ((0.3 - 0.007, False), (0.3 - 0.003, True), (0.31, True)):
         value = float(depth([0.0, 0.0, z], [0.3, 0.004])[0])
         assert (value >= 0.0) == inside
+
+
+def _same_problem(a: Transcription, b: Transcription) -> None:
+    assert [(x.term.name, x.defines) for x in a.blocks] == [
+        (y.term.name, y.defines) for y in b.blocks
+    ]
+    for x, y in zip(a.blocks, b.blocks, strict=True):
+        for field in ("x", "p", "rows"):
+            np.testing.assert_array_equal(getattr(x, field), getattr(y, field))
+    assert (a.n_y, a.rows.size) == (b.n_y, b.rows.size)
+    for u, v in zip(a.rows.bounds(), b.rows.bounds(), strict=True):
+        np.testing.assert_array_equal(u, v)
+
+
+def test_a_round_of_found_pairs_reuses_the_earlier_pairs_calls_and_builds_the_same_problem():
+    """Pairs that extend an earlier transcription's (a round's found pairs) reuse its pair
+    calls; the problem is the one a transcription from scratch builds, new kinds (a pair
+    promoted to (11), one between two nodes) and the rows included. Other pairs (one left
+    out) or other numbers are transcribed from scratch."""
+    table = {"centre": np.array([0.6, 0.0, 0.36]), "yaw": 0.0, "half": np.array([0.3, 0.4, 0.36])}
+    knee, elbow = link_sphere_list("left_knee_link")[2], link_sphere_list("right_elbow_link")[0]
+    carried = NodeMode((True, True), (0, 0), (ObjectMode(True, None),))
+    modes = [carried] * 3
+    numbers = Numbers(CostWeights(), ContactCfg(), CollisionCfg(), (BOX,), ())
+    P = np.zeros((NodeLayout.of(1).n_params, len(modes)))
+    first = transcribe(modes, P, numbers, g1_terms())
+    found = [
+        dataclasses.replace(first.pairs[-1], node=0),  # a kind the first pairs have
+        CollisionPair(1, "found", "sphere_fixed_box", sphere=knee, numbers=table),
+        CollisionPair(0, "found", "sphere_fixed_box", sphere=knee, numbers=table, fraction=0.5),
+        CollisionPair(2, "found_hard", "sphere_fixed_box", sphere=elbow, numbers=table),
+    ]
+    for pairs in ([*first.pairs, *found], [*first.pairs[1:], *found]):
+        again = transcribe(modes, P, numbers, g1_terms(), pairs, previous=first)
+        _same_problem(again, transcribe(modes, P, numbers, g1_terms(), pairs))
+    assert first.pair_calls.starts([*first.pairs, *found], first.pair_calls.context)
+    assert not first.pair_calls.starts([*first.pairs[1:], *found], first.pair_calls.context)
+    heavier = dataclasses.replace(numbers, weights=CostWeights(collision=2.0))
+    pairs = [*first.pairs, *found]
+    again = transcribe(modes, P, heavier, g1_terms(), pairs, previous=first)
+    _same_problem(again, transcribe(modes, P, heavier, g1_terms(), pairs))

@@ -140,6 +140,7 @@ class TrajectoryOptimizer:
         if self.switch_at is not None and self.switch_at >= solver.max_iterations:
             self.switch_at = None
         self._nlps: dict[tuple[str, str], BlockNLP] = {}
+        self._last: Transcription | None = None
         self.transcription = self.transcribe()
         self.nlp = self._nlp(self.transcription, solver.hessian)
         self._built_s = time.perf_counter() - tic
@@ -167,7 +168,10 @@ class TrajectoryOptimizer:
             keyframe_base=self.cfg.keyframe_base,
             keyframe_foot=self.cfg.keyframe_foot,
         )
-        return transcribe(self.modes, P, numbers, self.robot, pairs)
+        # The last transcription's pair calls serve the next whose pairs extend its own (a
+        # round of found pairs).
+        self._last = transcribe(self.modes, P, numbers, self.robot, pairs, self._last)
+        return self._last
 
     def _nlp(
         self, transcription: Transcription, hessian: str, limits: dict | None = None

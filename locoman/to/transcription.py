@@ -131,6 +131,7 @@ class Transcription:
     blocks: tuple[Block, ...]
     rows: RowSpace
     n_y: int
+    pair_calls: PairCalls | None = None
 
     @property
     def n_x(self) -> int:
@@ -166,6 +167,40 @@ class Transcription:
             cost = float(lb.sum()) + float(np.square(rb).sum())
             costs[block.term.name] = costs.get(block.term.name, 0.0) + cost
         return g, costs
+
+
+@dataclasses.dataclass(frozen=True)
+class PairCalls:
+    """A transcription's collision pairs as calls, kept so that the next transcription
+    whose pairs start with the same ones (a round's found pairs appended to them) adds
+    only its new pairs' calls: S2 transcribes its 111 188 pairs once, not once a round.
+
+    Attributes:
+        pairs: The pairs, in order.
+        context: What the calls depend on beyond the pairs: the nodes, the node layout's
+            width, the spheres (their virtual slots), the collision settings and weights.
+        stacked: Each (geometry, treatment, between) kind's calls, (x, p) stacked, in the
+            order the kinds first came.
+        between: The virtual sphere centres between nodes that the pairs asked for.
+        n_y: The virtual variables after them.
+        homotopy_nodes: The nodes with a homotopy pair (13b).
+    """
+
+    pairs: tuple[CollisionPair, ...]
+    context: tuple
+    stacked: dict[tuple[str, str, bool], tuple[np.ndarray, np.ndarray]]
+    between: dict[tuple[int, float, str], np.ndarray]
+    n_y: int
+    homotopy_nodes: frozenset[int]
+
+    def starts(self, pairs: list[CollisionPair], context: tuple) -> bool:
+        """Whether ``pairs`` begin with these very pairs, in this context."""
+        n = len(self.pairs)
+        return (
+            n <= len(pairs)
+            and context == self.context
+            and all(a is b for a, b in zip(self.pairs, pairs[:n], strict=True))
+        )
 
 
 class _Index:
@@ -300,6 +335,7 @@ def transcribe(
     numbers: Numbers,
     robot: RobotTerms,
     pairs: list[CollisionPair] | None = None,
+    previous: Transcription | None = None,
 ) -> Transcription:
     """The problem as term calls.
 
@@ -310,6 +346,9 @@ def transcribe(
         robot: The robot's own term kinds.
         pairs: The collision pairs; None: the configuration's
             (:func:`locoman.to.collision_pairs.collision_pairs`).
+        previous: An earlier transcription: where ``pairs`` begin with its pairs in the
+            same context (:class:`PairCalls`), their calls are reused, not rebuilt. The
+            result is the same either way.
     """
     if pairs is None:
         pairs = collision_pairs(modes, numbers, robot.frames)
@@ -325,10 +364,17 @@ def transcribe(
     _contacts(b, at, modes, numbers, robot, P, par, opar)
     _wrench_rows(b, at, modes, numbers, robot, P, par)
     _costs(b, at, modes, numbers, robot, P, par, opar)
-    _collisions(b, at, pairs, numbers.collision, numbers.weights)
+    names = tuple(s.name for s in spheres.spheres)
+    context = (n, layout.width, names, numbers.collision, numbers.weights)
+    reused = previous.pair_calls if previous is not None else None
+    if reused is not None and not reused.starts(pairs, context):
+        reused = None
+    pair_calls = _collisions(b, at, pairs, numbers.collision, numbers.weights, context, reused)
     _between(b, at, robot, spheres)
     blocks = b.close()
-    return Transcription(layout, n, spheres, tuple(pairs), tuple(blocks), b.rows, at.n_y)
+    return Transcription(
+        layout, n, spheres, tuple(pairs), tuple(blocks), b.rows, at.n_y, pair_calls
+    )
 
 
 def _kinematics(b: _Builder, at: _Index, robot: RobotTerms, n: int) -> None:
@@ -637,13 +683,24 @@ def _pair_inputs(at: _Index, k: int, pair: CollisionPair, robot: bool = True) ->
     return x
 
 
-def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None:
-    """Every pair under its kind's treatment; (13b) at each node with a homotopy pair."""
+def _collisions(
+    b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights, context: tuple, reused
+) -> PairCalls:
+    """Every pair under its kind's treatment, after ``reused``'s (a :class:`PairCalls`
+    of the first pairs, or None); (13b) at each node with a homotopy pair."""
     touching_margin = math.log(3.0) * cfg.smoothing_m
     homotopy_nodes = set()
     # The calls of each (geometry, treatment, between) kind, looked up once per kind.
     calls: dict[tuple[str, str, bool], Calls] = {}
-    for pair in pairs:
+    start = 0
+    if reused is not None:
+        for key, (x, p) in reused.stacked.items():
+            calls[key] = b.own(collision_kind(*key))
+            calls[key].start_with(x, p)
+        at.between, at.n_y = dict(reused.between), reused.n_y
+        homotopy_nodes |= reused.homotopy_nodes
+        start = len(reused.pairs)
+    for pair in pairs[start:]:
         treatment = getattr(cfg, pair.kind)
         key = (pair.geometry, treatment, pair.fraction > 0.0)
         if key not in calls:
@@ -673,8 +730,12 @@ def _collisions(b, at: _Index, pairs, cfg: CollisionCfg, w: CostWeights) -> None
                 homotopy_nodes.add(k + 1)
             x |= {f"{s}_next": v for s, v in x_next.items()}
         calls[key].add(x, p)
+    stacked = {key: c.arrays() for key, c in calls.items()}
     for k in sorted(homotopy_nodes):
         b.own(homotopy_weight_kind()).add({"alpha": at.var(k, "alpha")}, {"weight": w.homotopy})
+    return PairCalls(
+        tuple(pairs), context, stacked, dict(at.between), at.n_y, frozenset(homotopy_nodes)
+    )
 
 
 def _between(b: _Builder, at: _Index, robot: RobotTerms, spheres: SphereSet) -> None:

@@ -110,9 +110,17 @@ class Calls:
         self._x: list[Mapping] = []
         self._p: list[Mapping] = []
         self._x_keys, self._p_keys = set(kind.x_slots), set(kind.p_slots)
+        self._stacked: tuple[np.ndarray, np.ndarray] | None = None
 
     def __len__(self) -> int:
-        return len(self._x)
+        return len(self._x) + (0 if self._stacked is None else len(self._stacked[0]))
+
+    def start_with(self, x: np.ndarray, p: np.ndarray) -> None:
+        """Calls already stacked (:meth:`arrays` of an earlier set of these calls) come
+        first."""
+        if len(self):
+            raise SolverBuildError(f"{self.kind.name}: stacked calls come before any other")
+        self._stacked = (x, p)
 
     def add(self, x: Mapping[str, object], p: Mapping[str, object] | None = None) -> None:
         p = p or {}
@@ -123,10 +131,15 @@ class Calls:
         self._p.append(p)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """(calls, nx) variable indices, (calls, np) numbers."""
-        x = _stacked(self.kind, "x", self.kind.x_slots, self._x, int)
-        p = _stacked(self.kind, "p", self.kind.p_slots, self._p, float)
-        return x, p
+        """(calls, nx) variable indices, (calls, np) numbers. The calls added so far are
+        stacked once: later calls come after them."""
+        if self._x or self._stacked is None:
+            x = _stacked(self.kind, "x", self.kind.x_slots, self._x, int)
+            p = _stacked(self.kind, "p", self.kind.p_slots, self._p, float)
+            if self._stacked is not None:
+                x, p = np.concatenate([self._stacked[0], x]), np.concatenate([self._stacked[1], p])
+            self._stacked, self._x, self._p = (x, p), [], []
+        return self._stacked
 
     def own(self, rows: RowSpace) -> Block:
         """The block, its rows new (with the kind's bounds)."""
