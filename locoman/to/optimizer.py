@@ -141,25 +141,25 @@ class TrajectoryOptimizer:
             self.switch_at = None
         self._nlps: dict[tuple[str, str], BlockNLP] = {}
         self._last: Transcription | None = None
+        self._transcribed_s = 0.0
         self.transcription = self.transcribe()
         self.nlp = self._nlp(self.transcription, solver.hessian)
-        self._built_s = time.perf_counter() - tic
+        # The rest of the set-up: the terms' loading (or compiling), schedule, modes.
+        self._set_up_s = time.perf_counter() - tic - self._transcribed_s - self.nlp.build_time_s
 
     @property
     def build_time_s(self) -> float:
-        """Time spent building: loading (or compiling) the terms, transcribing, assembling
-        the NLPs so far [s]."""
-        return (
-            self._built_s
-            + sum(nlp.build_time_s for nlp in self._nlps.values())
-            - (self.nlp.build_time_s)
-        )
+        """Time spent building: loading (or compiling) the terms, every transcription and
+        the assembly of every NLP so far [s]."""
+        assembled = sum(nlp.build_time_s for nlp in self._nlps.values())
+        return self._set_up_s + self._transcribed_s + assembled
 
     def transcribe(
         self, numbers: Numbers | None = None, pairs: list[CollisionPair] | None = None
     ) -> Transcription:
         """The problem as data with these numbers (default: the optimizer's) and the
         configuration's keyframe costs (9), (10)."""
+        tic = time.perf_counter()
         numbers = numbers or self.numbers
         inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
         P = node_parameters(
@@ -171,6 +171,7 @@ class TrajectoryOptimizer:
         # The last transcription's pair calls serve the next whose pairs extend its own (a
         # round of found pairs).
         self._last = transcribe(self.modes, P, numbers, self.robot, pairs, self._last)
+        self._transcribed_s += time.perf_counter() - tic
         return self._last
 
     def _nlp(
@@ -251,12 +252,12 @@ class TrajectoryOptimizer:
                 default: the configuration's, with its switch to the exact one.
         """
         numbers = numbers or self.numbers
-        tic = time.perf_counter()
-        tr = self.transcribe(numbers, pairs)
+        # The problem the optimizer was built with, or another one's transcription.
+        same = numbers is self.numbers and pairs is None
+        tr = self.transcription if same else self.transcribe(numbers, pairs)
         hessian = hessian or self.cfg.solver.hessian
         switch_at = self.switch_at if hessian != "exact" else None
         nlp = self._nlp(tr, hessian)
-        transcribed_s = time.perf_counter() - tic
         inputs = dataclasses.replace(self.inputs, objects=numbers.objects)
         homotopy = self.cfg.collision.homotopy
         layout, schedule, modes = tr.layout, self.schedule, self.modes
@@ -287,7 +288,7 @@ class TrajectoryOptimizer:
         result = nlp.solve(*args, warm)
         stalled = result.status == "Solved_To_Acceptable_Level"
         if switch_at is None or (not stalled and (result.success or result.iterations < switch_at)):
-            return self._trajectory(result, tr, nlp, transcribed_s, hessian)
+            return self._trajectory(result, tr, nlp, hessian)
         # The first Hessian used its share of the iterations without converging, or stalled:
         # the exact one goes on from its primal-dual point with what is left.
         limits = {"max_iter": self.cfg.solver.max_iterations - result.iterations}
@@ -302,14 +303,13 @@ class TrajectoryOptimizer:
         )
         exact = self._nlp(tr, "exact")
         polished = exact.solve(*args, result.warm_start, limits)
-        return self._trajectory(polished, tr, nlp, transcribed_s, "exact", before=result)
+        return self._trajectory(polished, tr, nlp, "exact", before=result)
 
     def _trajectory(
         self,
         result: NLPResult,
         tr: Transcription,
         nlp: BlockNLP,
-        transcribed_s: float,
         hessian: str,
         before: NLPResult | None = None,
     ) -> Trajectory:
@@ -334,7 +334,7 @@ class TrajectoryOptimizer:
             success=result.success,
             iterations=result.iterations + (before.iterations if before else 0),
             solve_time_s=result.solve_time_s + (before.solve_time_s if before else 0.0),
-            build_time_s=self.build_time_s + transcribed_s,
+            build_time_s=self.build_time_s,
             function_time_s=result.function_time_s + (before.function_time_s if before else 0.0),
             exact_iterations=exact_iterations,
             alpha_max=float(part("alpha").max()),
