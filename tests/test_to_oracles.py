@@ -119,3 +119,96 @@ def test_a_virtual_variable_defined_twice_or_from_another_is_refused():
         oracles([[0, 2], [1, 2]])
     with pytest.raises(SolverBuildError, match="real ones only"):
         oracles([[0, 2], [2, 3]])
+
+
+def _lift() -> Term:
+    """y = (sin(u0) u1, u0 u1^2): a virtual point of a real one, curved."""
+    u, c = ca.SX.sym("u", 2), ca.SX.sym("c", 2)
+    lifted = ca.vertcat(ca.sin(u[0]) * u[1], u[0] * u[1] ** 2)
+    return dataclasses.replace(
+        Term(ca.Function("lift", [ca.vertcat(u, c), ca.SX(0, 1)], [c - lifted, 0, ca.SX(0, 1)])),
+        lifts=True,
+    )
+
+
+def _pair() -> Term:
+    """A cost on two virtual points, coupling all four coordinates."""
+    a, b = ca.SX.sym("a", 2), ca.SX.sym("b", 2)
+    residual = ca.dot(a - b, a + b) + 0.3 * a[0] * b[1]
+    return Term(ca.Function("pair", [ca.vertcat(a, b), ca.SX(0, 1)], [ca.SX(0, 1), 0, residual]))
+
+
+def _ring() -> Term:
+    """A constraint row on one virtual point."""
+    a = ca.SX.sym("a", 2)
+    return Term(ca.Function("ring", [a, ca.SX(0, 1)], [ca.sumsqr(a), 0, ca.SX(0, 1)]))
+
+
+REAL_POINTS = 5
+
+
+def _blocks(lifted: int, pairs: np.ndarray, ring: bool, rows: RowSpace) -> list[Block]:
+    """Five real points (2 each), the first ``lifted`` lifted in two definition blocks,
+    the second from point 3 on (as a round's spheres between nodes come after every
+    node's); a cost on the real ones that a round leaves as it is; the pair cost on
+    ``pairs`` of virtual points; with ``ring``, a constraint on the last lifted one."""
+    n_x = 2 * REAL_POINTS
+
+    def lift(chosen: range) -> Block:
+        x = np.array([[2 * i, 2 * i + 1, n_x + 2 * i, n_x + 2 * i + 1] for i in chosen])
+        return Block(_lift(), x, np.zeros((len(x), 0)), np.zeros((len(x), 0), int), defines=True)
+
+    def at(i: np.ndarray) -> np.ndarray:
+        return n_x + 2 * i[:, None] + np.arange(2)
+
+    x = np.hstack([at(pairs[:, 0]), at(pairs[:, 1])])
+    none = np.zeros((len(x), 0))
+    track = Block(_track(), np.array([[0, 1, 2]]), np.zeros((1, 0)), np.zeros((1, 0), int))
+    blocks = [lift(range(min(lifted, 3))), track, Block(_pair(), x, none, none.astype(int))]
+    if lifted > 3:
+        blocks.append(lift(range(3, lifted)))
+    if ring:
+        row = rows.allocate(1, np.array([1.0]), np.array([2.0]))
+        blocks.append(Block(_ring(), at(np.array([lifted - 1])), np.zeros((1, 0)), row))
+    return blocks
+
+
+@pytest.mark.parametrize("hessian", ["exact", "gauss_newton", "projected"])
+def test_a_rounds_oracles_extend_the_previous_patterns_into_the_same_problem(hessian):
+    """Oracles built on the previous round's (whose calls are their first calls) extend
+    its patterns by the new calls: new pairs on old and on new virtual points, a new
+    definition block and a new constraint. The patterns, each call's place in them and the
+    derivatives are those of oracles built from scratch; oracles of other first calls or
+    of another Hessian are built from scratch."""
+    rng = np.random.default_rng(11)
+    old_pairs = np.array([[0, 1], [1, 2]])
+    # (0, 2) adds entries among the old ones (they move), the others after them.
+    new_pairs = np.r_[old_pairs, [[0, 2], [2, 4], [1, 3], [3, 4]]]
+    derivatives = load_derivatives([_lift(), _track(), _pair(), _ring()], None)
+
+    def oracles(lifted, pairs, ring, previous=None, flavour=hessian) -> Oracles:
+        rows = RowSpace()
+        blocks = _blocks(lifted, pairs, ring, rows)
+        n_x = 2 * REAL_POINTS
+        return Oracles(n_x, blocks, rows.size, derivatives, flavour, 2 * lifted, previous)
+
+    first = oracles(3, old_pairs, ring=False)
+    extended = oracles(5, new_pairs, ring=True, previous=first)
+    scratch = oracles(5, new_pairs, ring=True)
+    assert extended._moved is not None and scratch._moved is None
+    for name in ("J_z", "H_z", "P", "J_x", "H_x"):
+        a, b = getattr(extended, name), getattr(scratch, name)
+        assert a.shape == b.shape and np.array_equal(a._linear, b._linear), name
+    for a, b in zip(extended._calls, scratch._calls, strict=True):
+        np.testing.assert_array_equal(a.hess_at, b.hess_at)
+        np.testing.assert_array_equal(a.jac_at, b.jac_at)
+    x, p, lam = rng.normal(size=10), np.zeros(0), rng.normal(size=1)
+    np.testing.assert_array_equal(
+        extended.hess_lag(x, p, 0.7, lam), scratch.hess_lag(x, p, 0.7, lam)
+    )
+    np.testing.assert_array_equal(extended.jac_g(x, p)[1], scratch.jac_g(x, p)[1])
+    assert len(np.unique(scratch.H_x._linear)) > len(first.H_x._linear)  # the test adds some
+    reordered = oracles(5, new_pairs[::-1], ring=True, previous=first)
+    other = "gauss_newton" if hessian == "exact" else "exact"
+    flavoured = oracles(5, new_pairs, ring=True, previous=first, flavour=other)
+    assert reordered._moved is None and flavoured._moved is None

@@ -372,6 +372,8 @@ class BlockNLP:
         hessian: A key of :data:`HESSIANS`.
         ipopt: IPOPT options.
         n_y: Virtual variables.
+        previous: An NLP whose blocks may be the first calls of these (the round before
+            this one): its patterns are extended, not made again (:class:`Oracles`).
     """
 
     def __init__(
@@ -383,6 +385,7 @@ class BlockNLP:
         hessian: str,
         ipopt: dict,
         n_y: int = 0,
+        previous: BlockNLP | None = None,
     ) -> None:
         tic = time.perf_counter()
         if hessian not in HESSIANS:
@@ -391,7 +394,8 @@ class BlockNLP:
         self.lbg, self.ubg = rows.bounds()
         self.key = structure_key(n_x + n_y, blocks)
         self.n_p = sum(b.p.size for b in blocks)
-        evaluate = Oracles(n_x, blocks, self.n_g, derivatives, hessian, n_y)
+        before = previous.evaluate if previous is not None else None
+        evaluate = Oracles(n_x, blocks, self.n_g, derivatives, hessian, n_y, before)
         self.evaluate = evaluate
         x_in = ("x", ca.Sparsity.dense(n_x, 1))
         p_in = ("p", ca.Sparsity.dense(self.n_p, 1))

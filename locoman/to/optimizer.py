@@ -186,6 +186,8 @@ class TrajectoryOptimizer:
                 else {"max_iter": self.switch_at, **self._stall_options()}
             )
             settled = self._settled_options() if hessian == "exact" else {}
+            # The latest NLP of this Hessian: a round's problem extends it.
+            latest = [nlp for (_, h), nlp in self._nlps.items() if h == hessian]
             self._nlps[key] = BlockNLP(
                 transcription.n_x,
                 transcription.blocks,
@@ -194,6 +196,7 @@ class TrajectoryOptimizer:
                 hessian,
                 self._ipopt | first | settled,
                 transcription.n_y,
+                latest[-1] if latest else None,
             )
         return self._nlps[key]
 
