@@ -184,7 +184,7 @@ def test_the_figures_time_limit_caps_the_solvers_and_keys_the_cell(params, upstr
     assert len(keys) == 2
 
 
-def test_a_failing_cell_is_recorded_and_a_rerun_skips_it(params, upstream):
+def test_a_failing_cell_is_recorded_and_a_rerun_tries_it_again(params, upstream):
     data = upstream.parent
     cell = CellCfg("tiny", "fig6", "all", 5.0, 0.0)
     record = run_cell(params, cell, data)  # returns: the grid goes on
@@ -194,9 +194,9 @@ def test_a_failing_cell_is_recorded_and_a_rerun_skips_it(params, upstream):
     assert read_record(folder)["key"] == record["key"]
     assert "Traceback" in (folder / "log.txt").read_text()
     assert not list(folder.parent.glob(".*staging"))  # swapped in whole
-    again = run_cell(params, cell, data)
-    assert again["skipped"] and again["key"] == record["key"]
-    assert "error (ArtifactError" in summary(again)
+    again = run_cell(params, cell, data)  # the error may have been the machine's
+    assert not again["skipped"] and again["key"] == record["key"]
+    assert again["status"] == "error" and "error (ArtifactError" in summary(again)
 
 
 def _stand_ins(monkeypatch, calls: dict[str, int]) -> None:

@@ -326,9 +326,9 @@ def _solved(previous: dict[str, Any] | None, solved: str, folder: Path) -> bool:
 def run_cell(
     cfg: RootCfg, cell: CellCfg, data_dir: Path = Path("data"), rescore: bool = False
 ) -> dict[str, Any]:
-    """Run one cell unless its record is up to date; return its record. A cell whose solve
-    is up to date is only evaluated again (``"reevaluated": true``); its ``wall_time_s``
-    stays the solve's, ``evaluate_wall_time_s`` is the new evaluation's [s]. With
+    """Run one cell unless its record is up to date (and not an error); return its record.
+    A cell whose solve is up to date is only evaluated again (``"reevaluated": true``); its
+    ``wall_time_s`` stays the solve's, ``evaluate_wall_time_s`` is the new evaluation's [s]. With
     ``rescore``, a cell with a kept trajectory is evaluated again even where the solve's
     code or parameters changed since (``"rescored": true``; it keeps its old ``solve_key``,
     so a plain run later solves it again).
@@ -355,7 +355,9 @@ def run_cell(
     if rescored:
         solved = previous["solve_key"]
         key = cell_key(solved, cfg.evaluate)
-    if previous is not None and previous.get("key") == key:
+    # An error (an exception, not a failed solve) may be the machine's (a full disk, a
+    # cache it could not write): the next run tries the cell again.
+    if previous is not None and previous.get("key") == key and previous.get("status") != "error":
         return {**previous, "skipped": True}
     if rescore and not _kept(previous, final):
         raise ArtifactError(f"{final} has no kept solve to score again: run the grid first")
