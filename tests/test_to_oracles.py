@@ -148,14 +148,18 @@ REAL_POINTS = 5
 
 
 def _blocks(lifted: int, pairs: np.ndarray, ring: bool, rows: RowSpace) -> list[Block]:
-    """Five real points (2 each), the first ``lifted`` lifted in two definition blocks,
-    the second from point 3 on (as a round's spheres between nodes come after every
-    node's); a cost on the real ones that a round leaves as it is; the pair cost on
-    ``pairs`` of virtual points; with ``ring``, a constraint on the last lifted one."""
+    """Five real points (2 each), ``lifted`` of them lifted in two definition blocks, the
+    second from point 3 on, of real points 1 and 2 (as a round's spheres between nodes come
+    after every node's, of the nodes' configurations); a cost on the real ones that a round
+    leaves as it is; the pair cost on ``pairs`` of virtual points; with ``ring``, a
+    constraint on the last lifted one."""
     n_x = 2 * REAL_POINTS
 
-    def lift(chosen: range) -> Block:
-        x = np.array([[2 * i, 2 * i + 1, n_x + 2 * i, n_x + 2 * i + 1] for i in chosen])
+    def lift(chosen: range, source: int = 0) -> Block:
+        """Virtual points ``chosen`` of the real points ``source`` on."""
+        x = np.array(
+            [[2 * j, 2 * j + 1, n_x + 2 * i, n_x + 2 * i + 1] for j, i in enumerate(chosen, source)]
+        )
         return Block(_lift(), x, np.zeros((len(x), 0)), np.zeros((len(x), 0), int), defines=True)
 
     def at(i: np.ndarray) -> np.ndarray:
@@ -166,7 +170,7 @@ def _blocks(lifted: int, pairs: np.ndarray, ring: bool, rows: RowSpace) -> list[
     track = Block(_track(), np.array([[0, 1, 2]]), np.zeros((1, 0)), np.zeros((1, 0), int))
     blocks = [lift(range(min(lifted, 3))), track, Block(_pair(), x, none, none.astype(int))]
     if lifted > 3:
-        blocks.append(lift(range(3, lifted)))
+        blocks.append(lift(range(3, lifted), source=1))  # among the first ones' entries of P
     if ring:
         row = rows.allocate(1, np.array([1.0]), np.array([2.0]))
         blocks.append(Block(_ring(), at(np.array([lifted - 1])), np.zeros((1, 0)), row))

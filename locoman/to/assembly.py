@@ -410,7 +410,7 @@ class BlockNLP:
             "jac_g": OracleCallback(
                 "jac_g",
                 [x_in, p_in],
-                [g_out, ("jac_g_x", evaluate.J_x.sparsity())],
+                [g_out, ("jac_g_x", evaluate.J_x.sparsity)],
                 evaluate.jac_g,
             ),
             "grad_f": OracleCallback(
@@ -422,7 +422,7 @@ class BlockNLP:
             "hess_lag": OracleCallback(
                 "hess_lag",
                 [x_in, p_in, ("lam_f", scalar), ("lam_g", ca.Sparsity.dense(self.n_g, 1))],
-                [("triu_hess_gamma_x_x", evaluate.H_x.sparsity())],
+                [("triu_hess_gamma_x_x", evaluate.H_x.sparsity)],
                 lambda x, p, lam_f, lam_g: [evaluate.hess_lag(x, p, float(lam_f[0]), lam_g)],
             ),
         }

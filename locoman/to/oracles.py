@@ -29,6 +29,7 @@ are in docs/performance.md):
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Sequence
 
 import casadi as ca
@@ -92,6 +93,7 @@ class Pattern:
         at = np.searchsorted(self._linear, linear)
         return np.bincount(at, coo.data, minlength=self.nnz)
 
+    @functools.cached_property
     def sparsity(self) -> ca.Sparsity:
         # From the compressed columns as they are: triplets would be sorted again.
         return ca.Sparsity(*self.shape, self._indptr.tolist(), self._indices.tolist())
@@ -296,10 +298,11 @@ class Oracles:
                 )
             )
         self._point: _Point | None = None
-        definitions_carried = carried is not None and (
-            self._carried(previous, [e.block for e in definitions], "_definitions") is not None
-        )
-        self._structure(previous if definitions_carried else None)
+        defined = self._carried(previous, [e.block for e in definitions], "_definitions")
+        if carried is None or defined is None:
+            self._structure(None, [None] * len(definitions))
+        else:
+            self._structure(previous, defined)
 
     def _carried(self, previous: Oracles | None, blocks: list, kept: str = "_calls") -> list | None:
         """For each of ``blocks``, the entry of ``previous``'s ``kept`` whose calls are its
@@ -353,18 +356,35 @@ class Oracles:
             dense,
         )
 
-    def _structure(self, previous: Oracles | None) -> None:
+    def _structure(self, previous: Oracles | None, defined: list) -> None:
         """P's pattern and the outputs' (over x): the same products on ones. ``previous``:
-        oracles whose calls and definitions are these' first (so whose P is this P's on
-        its rows, and whose H_z is within this H_z): H_x is theirs and the products of
-        the entries H_z adds."""
+        oracles whose calls and definitions (``defined``: each definition's, or None) are
+        these' first, so whose P is this P on its rows and whose H_z and H_x are within
+        these: P and H_x are theirs and what the new calls add."""
         n_x, n_y = self.n_x, self.n_y
-        lifted = [e.jac_at[0].ravel() for e in self._definitions]
-        inputs = [e.jac_at[1].ravel() for e in self._definitions]
-        self.P = Pattern(_joined(lifted), _joined(inputs), (n_y, n_x))
+        # Each definition's entries of P, after those of its previous calls.
+        new = [
+            e.jac_at[:, before.block.calls if before else 0 :].reshape(2, -1)
+            for e, before in zip(self._definitions, defined, strict=True)
+        ]
+        rows, cols = _joined([n[0] for n in new]), _joined([n[1] for n in new])
+        if previous is None:
+            self.P = Pattern(rows, cols, (n_y, n_x))
+        else:
+            self.P, moved = previous.P.extended(rows, cols, (n_y, n_x))
+            owned = dict(zip(map(id, previous._definitions), previous._p_at(), strict=True))
+            fresh = _split(self.P.where, [n.shape[1] for n in new])
+            self.P.where = _joined(
+                [
+                    np.r_[moved[owned[id(before)]], next(fresh)] if before else next(fresh)
+                    for before in defined
+                ]
+            )
         ones = self.P.matrix(np.ones(self.P.nnz))
         J_z = self.J_z.matrix(np.ones(self.J_z.nnz))
         self.J_x = structural(J_z[:, :n_x] + J_z[:, n_x:] @ ones if n_y else J_z)
+        if previous is not None and np.array_equal(self.J_x._linear, previous.J_x._linear):
+            self.J_x = previous.J_x  # and its CasADi sparsity, made once
         added = np.ones(self.H_z.nnz)
         if previous is not None:
             added[self._moved] = 0.0
@@ -374,10 +394,21 @@ class Oracles:
         if previous is not None:
             H_x = H_x + previous.H_x.matrix(np.ones(previous.H_x.nnz))
         if self.hessian == "exact":
-            rows = _joined([e.hess_rows.ravel() for e in self._definitions])
-            cols = _joined([e.hess_cols.ravel() for e in self._definitions])
+            rows, cols = (
+                _joined(
+                    [
+                        getattr(e, side)[before.block.calls if before else 0 :].ravel()
+                        for e, before in zip(self._definitions, defined, strict=True)
+                    ]
+                )
+                for side in ("hess_rows", "hess_cols")
+            )
             H_x = H_x + sps.csc_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_x, n_x))
         self.H_x = structural(H_x)
+
+    def _p_at(self) -> list[np.ndarray]:
+        """Each definition's entries' positions in P, in its calls' order."""
+        return list(_split(self.P.where, [e.jac_at[0].size for e in self._definitions]))
 
     def _chain_rule(self, H_z: sps.csc_matrix, P: sps.csc_matrix) -> sps.csc_matrix:
         """triu(H_x) from the upper triangle of H_z and P = dy/dx."""
