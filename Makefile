@@ -45,11 +45,12 @@ run: setup
 	$(BIN)/python -m locoman.repro "$(ARM_TINY)" "$(ARM_REST)"
 
 # Two pytest-xdist workers, a test file on one: the end-to-end file (tiny's DVC subgraph, then
-# grid cells on its artifacts, in order) on one, the other files on whichever is free; a plain
+# grid cells on its artifacts, in order) starts on one, the DVC experiments on the other, and
+# the other files fill in on whichever is free (tests/conftest.py orders them); a plain
 # `pytest` runs them all in one process.
 TEST_JOBS ?= 2
 test: setup $(LEARNED)
-	$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile --no-loadscope-reorder
 
 # The headline numbers per scenario, one table (from the stages' metrics.json).
 results: setup

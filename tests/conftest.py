@@ -23,6 +23,21 @@ REPO = Path(__file__).resolve().parents[1]
 CLI_TIMEOUT_S = 3600
 
 
+# The files that take minutes, longest first. `make test` gives each pytest-xdist worker whole
+# files in collection order (`--dist loadfile --no-loadscope-reorder`): these start at once,
+# one per worker, and the short files fill in behind them. In xdist's default order (files
+# with the most tests first) the end-to-end file started last and ran alone on one core.
+SLOW_FILES = ("test_pipeline_e2e.py", "test_dvc_experiments.py")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        name = item.path.name
+        return SLOW_FILES.index(name) if name in SLOW_FILES else len(SLOW_FILES)
+
+    items.sort(key=rank)  # stable: each file's tests keep their order
+
+
 @pytest.fixture(scope="session")
 def repo() -> Path:
     return REPO
@@ -67,10 +82,19 @@ def run_cli():
     return _run_cli
 
 
+_NOT_COPIED = ("data/", "benchmarks/results/", "docs/gallery/")
+
+
 @pytest.fixture(scope="module")
 def workdir(repo, tmp_path_factory) -> Path:
     """A fresh checkout-like copy per test file: tracked and unignored files only, no data
-    outputs, a git repository of its own (DVC needs one)."""
+    outputs, a git repository of its own (DVC needs one).
+
+    Left out besides ``data/``: what no stage reads. ``dvc.lock`` describes outputs the copy
+    has not got, so a stage runs with or without it, but DVC parses its 130 kB with
+    pure-Python YAML about twice per command (3-4 s each on a slow 2-core instance); the
+    committed benchmark results and gallery (1 100 files, 12 MB) would only lengthen
+    every ``dvc exp run``'s copy of the workspace."""
     files = subprocess.run(
         ["git", "ls-files", "--cached", "--others", "--exclude-standard"],
         cwd=repo,
@@ -81,7 +105,7 @@ def workdir(repo, tmp_path_factory) -> Path:
     dst = tmp_path_factory.mktemp("pipeline")
     for rel in files:
         src = repo / rel
-        if src.is_file() and not rel.startswith("data/"):
+        if src.is_file() and not rel.startswith(_NOT_COPIED) and rel != "dvc.lock":
             (dst / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(src, dst / rel)
     assert _run_cli(["git", "init", "-q"], dst).returncode == 0

@@ -26,6 +26,7 @@ from locoman.to.found_pairs import (
     FLOOR_BOX,
     PROMOTED,
     WRIST_LINKS,
+    Check,
     Scene,
     arm_nodes,
     arm_pairs,
@@ -171,17 +172,17 @@ def test_a_holding_hands_wrist_against_its_object_may_touch_it(scene):
 def test_found_pairs_cover_the_nodes_around_once_and_never_the_first(scene):
     scene_ = _box_by_the_table(scene)
     table = Body("fixed", "table", "table/top")
-    new = found_pairs([_close(KNEE, table)], [], scene_)
+    new = found_pairs(Check([_close(KNEE, table)], scene_), [])
     assert {p.node for p in new} == {1, 2, 3}
     assert {p.geometry for p in new} == {"sphere_fixed_box"}
     assert len(new) == 3 * 6  # six knee spheres at each node
-    assert found_pairs([_close(KNEE, table)], new, scene_) == []  # already there
+    assert found_pairs(Check([_close(KNEE, table)], scene_), new) == []  # already there
     # Between nodes 0 and 1: at nodes 1 and 2 (node 0 is given), and where along the step.
-    first = found_pairs([_close(KNEE, table, node=0, fraction=0.25)], [], scene_)
+    first = found_pairs(Check([_close(KNEE, table, node=0, fraction=0.25)], scene_), [])
     assert {p.node for p in first if p.fraction == 0.0} == {1, 2}
     assert {(p.node, p.fraction) for p in first if p.fraction} == {(0, 0.25)}
     assert len(first) == 3 * 6
-    floor = found_pairs([_close(KNEE, Body("floor", "floor", "floor"))], [], scene_)
+    floor = found_pairs(Check([_close(KNEE, Body("floor", "floor", "floor"))], scene_), [])
     assert all(p.numbers["centre"][2] == FLOOR_BOX.centre[2] for p in floor)
 
 
@@ -191,12 +192,12 @@ def test_unmodelled_names_the_close_pairs_whose_pairs_are_missing(scene):
     scene_ = _box_by_the_table(scene)
     table, floor = Body("fixed", "table", "table/top"), Body("floor", "floor", "floor")
     close = [_close(KNEE, table), _close(KNEE, floor), _close(KNEE, table, node=0, fraction=0.5)]
-    modelled = found_pairs(close[:1], [], scene_)
-    assert unmodelled(close, [], scene_) == close
-    assert unmodelled(close, modelled, scene_) == close[1:]
-    assert unmodelled(close, found_pairs(close, [], scene_), scene_) == []
+    modelled = found_pairs(Check(close[:1], scene_), [])
+    assert unmodelled(Check(close, scene_), []) == close
+    assert unmodelled(Check(close, scene_), modelled) == close[1:]
+    assert unmodelled(Check(close, scene_), found_pairs(Check(close, scene_), [])) == []
     relabelled = [dataclasses.replace(p, label="elsewhere") for p in modelled]
-    assert unmodelled(close, relabelled, scene_) == close[1:]  # a pair is not its label
+    assert unmodelled(Check(close, scene_), relabelled) == close[1:]  # a pair is not its label
 
 
 def test_an_object_against_another_keeps_its_edges_and_the_others_rim_out(scene):
@@ -219,7 +220,7 @@ def test_an_object_against_another_keeps_its_edges_and_the_others_rim_out(scene)
     assert len(own) == len(box_edge_points(np.zeros(3), half, scene_.spacing_m)) > 8
     assert len(rim) > 8
     assert len({p.label for p in pairs}) == len(pairs)
-    assert len(found_pairs([close], [], scene_)) == 3 * len(pairs)
+    assert len(found_pairs(Check([close], scene_), [])) == 3 * len(pairs)
 
 
 def test_a_carried_box_against_the_table_or_the_floor_keeps_every_point(scene):
@@ -231,14 +232,14 @@ def test_a_carried_box_against_the_table_or_the_floor_keeps_every_point(scene):
     (box,), table = scene_.objects, next(iter(scene_.obstacles.values()))
     carried = Body("object", "box", "box/body")
     pairs = found_pairs(
-        [_close(carried, Body("fixed", table.name, f"{table.name}/top"))], [], scene_
+        Check([_close(carried, Body("fixed", table.name, f"{table.name}/top"))], scene_), []
     )
     centre, half = object_boxes(box)[0]
     own = len(box_edge_points(centre, half, scene_.spacing_m))
     spacing = min(scene_.spacing_m, float(min(half)))
     rim = len(edge_points(table, edge_point_counts(table.half_extents, spacing)))
     assert len(pairs) == 3 * (own + rim)  # nodes 1, 2, 3
-    floor = found_pairs([_close(carried, Body("floor", "floor", "floor"))], [], scene_)
+    floor = found_pairs(Check([_close(carried, Body("floor", "floor", "floor"))], scene_), [])
     assert len(floor) == 3 * own
     assert {p.geometry for p in floor} == {"object_point_fixed_box"}
 
@@ -248,13 +249,13 @@ def test_a_found_pair_still_penetrated_comes_back_hard(scene):
     already returns them as ``found_hard``, once; one within the margin only does not."""
     scene_ = _box_by_the_table(scene)
     close = _close(KNEE, Body("fixed", "table", "table/top"))
-    assert promoted_pairs([close], [], scene_) == []  # not modelled yet: found first
-    found = found_pairs([close], [], scene_)
-    hard = promoted_pairs([close], found, scene_)
+    assert promoted_pairs(Check([close], scene_), []) == []  # not modelled yet: found first
+    found = found_pairs(Check([close], scene_), [])
+    hard = promoted_pairs(Check([close], scene_), found)
     assert len(hard) == len(found) and {p.kind for p in hard} == {"found_hard"}
-    assert promoted_pairs([close], found + hard, scene_) == []
+    assert promoted_pairs(Check([close], scene_), found + hard) == []
     near = ClosePair(2, 0.0, close.a, close.b, 0.003, close.point)  # within the margin
-    assert promoted_pairs([near], found, scene_) == []
+    assert promoted_pairs(Check([near], scene_), found) == []
 
 
 def test_a_rounds_pairs_are_found_then_promoted_once(scene):
@@ -263,13 +264,13 @@ def test_a_rounds_pairs_are_found_then_promoted_once(scene):
     scene_ = _box_by_the_table(scene)
     table = _close(KNEE, Body("fixed", "table", "table/top"))
     cfg = CollisionCfg()
-    first = round_pairs([table], [], scene_, cfg)
+    first = round_pairs(Check([table], scene_), [], cfg)
     assert first and {p.kind for p in first} == {"found"}
-    again = round_pairs([table], first, scene_, cfg)
+    again = round_pairs(Check([table], scene_), first, cfg)
     assert len(again) == len(first) and {p.kind for p in again} == {"found_hard"}
-    assert round_pairs([table], first + again, scene_, cfg) == []
+    assert round_pairs(Check([table], scene_), first + again, cfg) == []
     same = dataclasses.replace(cfg, found="constraint", found_hard="constraint")
-    assert round_pairs([table], first, scene_, same) == []
+    assert round_pairs(Check([table], scene_), first, same) == []
 
 
 def test_pairs_with_the_same_label_against_another_box_are_not_the_same(scene):
@@ -281,14 +282,16 @@ def test_pairs_with_the_same_label_against_another_box_are_not_the_same(scene):
     scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames())
     hand = Body("robot", "right_rubber_hand", "right_rubber_hand#64")
     close = _close(hand, Body("object", "box", "box/body"))
-    pairs = found_pairs([close], [], scene_)
+    pairs = found_pairs(Check([close], scene_), [])
     assert pairs and all(p.label.endswith("box/0") for p in pairs)
     elsewhere = [
         dataclasses.replace(p, numbers=p.numbers | {"centre": p.numbers["centre"] + 0.3})
         for p in pairs
     ]
-    assert [p.label for p in found_pairs([close], elsewhere, scene_)] == [p.label for p in pairs]
-    assert found_pairs([close], pairs, scene_) == []
+    assert [p.label for p in found_pairs(Check([close], scene_), elsewhere)] == [
+        p.label for p in pairs
+    ]
+    assert found_pairs(Check([close], scene_), pairs) == []
 
 
 class _Stuck:
@@ -451,7 +454,7 @@ def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):
     }
     scene_ = Scene((box, other), poses, {}, contact_frames(), schedule)
     close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
-    assert {p.node for p in found_pairs([close], [], scene_)} == {1, 2}  # not 3
+    assert {p.node for p in found_pairs(Check([close], scene_), [])} == {1, 2}  # not 3
 
 
 def _open_box(scene, hand_object: np.ndarray) -> Scene:

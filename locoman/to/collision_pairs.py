@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
@@ -83,7 +84,7 @@ class CollisionPair:
         joined. Made once per pair: a round of found pairs compares thousands of them."""
         spheres = tuple(sorted(s.name for s in (self.sphere, self.other) if s is not None))
         numbers = tuple(
-            (name, tuple(round(x, 9) for x in np.ravel(value).tolist()))
+            (name, tuple(map(round, np.ravel(value).tolist(), itertools.repeat(9))))
             for name, value in sorted(self.numbers.items())
         )
         where = (self.node, round(self.fraction, 6))

@@ -11,6 +11,7 @@ edges against what it came close to; at the nodes around where it happened
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -209,14 +210,29 @@ def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[Collisio
     return out
 
 
-def found_pairs(
-    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int = 1
-) -> list[CollisionPair]:
-    """The :func:`candidates` of each of ``close`` that ``existing`` lacks, once each."""
+@dataclasses.dataclass(frozen=True)
+class Check:
+    """One check of a solution: its close pairs, each with its :func:`candidates` in
+    ``scene`` (``around`` nodes either side), made once. A round reads them up to three
+    times (:func:`found_pairs`, :func:`promoted_pairs`, :func:`unmodelled`), and making
+    them, thousands of pairs with their identities, was most of a check's time."""
+
+    close: list[ClosePair]
+    scene: Scene
+    around: int = 1
+
+    @functools.cached_property
+    def candidates(self) -> list[list[CollisionPair]]:
+        return [candidates(c, self.scene, self.around) for c in self.close]
+
+
+def found_pairs(check: Check, existing: list[CollisionPair]) -> list[CollisionPair]:
+    """The :func:`candidates` of each of ``check``'s close pairs that ``existing`` lacks,
+    once each."""
     known = {p.identity for p in existing}
     out = []
-    for c in close:
-        for pair in candidates(c, scene, around):
+    for pairs in check.candidates:
+        for pair in pairs:
             if pair.identity not in known:
                 known.add(pair.identity)
                 out.append(pair)
@@ -284,29 +300,28 @@ def arm_pairs(
     return out
 
 
-def unmodelled(
-    close: list[ClosePair], existing: list[CollisionPair], scene: Scene
-) -> list[ClosePair]:
-    """Those of ``close`` that ``existing`` lacks a :func:`candidates` pair of (each has
-    :func:`found_pairs`), with ``existing``'s keys made once: per close pair they took
-    minutes on a check with thousands of pairs."""
+def unmodelled(check: Check, existing: list[CollisionPair]) -> list[ClosePair]:
+    """Those of ``check``'s close pairs that ``existing`` lacks a :func:`candidates` pair of
+    (each has :func:`found_pairs`), with ``existing``'s keys made once: per close pair they
+    took minutes on a check with thousands of pairs."""
     known = {p.identity for p in existing}
-    return [c for c in close if any(p.identity not in known for p in candidates(c, scene))]
+    return [
+        c
+        for c, pairs in zip(check.close, check.candidates, strict=True)
+        if any(p.identity not in known for p in pairs)
+    ]
 
 
-def promoted_pairs(
-    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int = 1
-) -> list[CollisionPair]:
-    """The pairs that keep coming back: for each of ``close`` that penetrates although the
-    problem has its pairs already, those pairs again as ``PROMOTED`` (the hard (11) by
-    default), once each, where ``existing`` does not have them so yet."""
+def promoted_pairs(check: Check, existing: list[CollisionPair]) -> list[CollisionPair]:
+    """The pairs that keep coming back: for each of ``check``'s close pairs that penetrates
+    although the problem has its pairs already, those pairs again as ``PROMOTED`` (the hard
+    (11) by default), once each, where ``existing`` does not have them so yet."""
     promoted = {p.identity for p in existing if p.kind == PROMOTED}
     known = {p.identity for p in existing}
     out = []
-    for c in close:
+    for c, pairs in zip(check.close, check.candidates, strict=True):
         if c.distance >= 0.0:
             continue
-        pairs = candidates(c, scene, around)
         if any(p.identity not in known for p in pairs):
             continue  # not all modelled yet: found_pairs adds them first
         for pair in pairs:
@@ -317,12 +332,12 @@ def promoted_pairs(
 
 
 def round_pairs(
-    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, cfg: CollisionCfg
+    check: Check, existing: list[CollisionPair], cfg: CollisionCfg
 ) -> list[CollisionPair]:
-    """What a check of a solution adds: the :func:`found_pairs` of ``close`` (``found``'s
-    treatment) and, with ``found_hard`` on and not the same as ``found`` (the same pair
-    again would be a duplicate row), the :func:`promoted_pairs`."""
-    new = found_pairs(close, existing, scene)
+    """What a check of a solution adds: the :func:`found_pairs` of its close pairs
+    (``found``'s treatment) and, with ``found_hard`` on and not the same as ``found`` (the
+    same pair again would be a duplicate row), the :func:`promoted_pairs`."""
+    new = found_pairs(check, existing)
     if cfg.found_hard in ("off", cfg.found):
         return new
-    return new + promoted_pairs(close, existing, scene)
+    return new + promoted_pairs(check, existing)

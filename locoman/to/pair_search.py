@@ -25,6 +25,7 @@ from locoman.to.collision_pairs import (
 )
 from locoman.to.found_pairs import (
     PROMOTED,
+    Check,
     Scene,
     arm_pairs,
     round_pairs,
@@ -173,11 +174,12 @@ def _rounds(
         close = close_pairs(model, scene.schedule, cfg.audit_margin_m, cfg.audit_substeps)
         seen.extend(close)
         deepest = min(close, key=lambda c: c.distance, default=None)
-        new = round_pairs(close, pairs, scene, dataclasses.replace(cfg, found_hard=promote))
+        check = Check(close, scene)
+        new = round_pairs(check, pairs, dataclasses.replace(cfg, found_hard=promote))
         if not new or after == cfg.rounds:
             rounds.append(_round(close, deepest, []))
             unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
-            return traj, unmodelled(close, pairs, scene), unfreed, promote
+            return traj, unmodelled(check, pairs), unfreed, promote
         after += 1
         print(
             f"[solve] round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
