@@ -20,37 +20,20 @@ from locoman.kernels import pin_kernels
 
 pin_kernels()  # first, as every stage: NumPy and OpenBLAS choose their kernels when they load
 
-import argparse
 import dataclasses
 import json
-import platform
 import statistics
-import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
+from common import Clock, run
 
-from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
 from locoman.config.to import scenario_solve
 from locoman.to.loading import load_inputs
 from locoman.to.pipeline import build_optimizer
 
 DATA = Path("data")
-
-
-class _Clock:
-    """Wall and CPU seconds since the last reading."""
-
-    def __init__(self) -> None:
-        self._wall, self._cpu = time.perf_counter(), time.process_time()
-
-    def lap(self) -> dict[str, float]:
-        wall, cpu = time.perf_counter(), time.process_time()
-        lap = {"wall_s": wall - self._wall, "cpu_s": cpu - self._cpu}
-        self._wall, self._cpu = wall, cpu
-        return lap
 
 
 def round_sizes(scenario: str) -> list[int]:
@@ -75,7 +58,7 @@ def build_once(scenario: str, sizes: list[int], seed: int = 0) -> dict:
     cfg = scenario_solve(load_params().solve, scenario)
     root = DATA / scenario
     inputs = load_inputs(root / "scene", root / "contacts", root / "retarget", cfg.contacts)
-    clock = _Clock()
+    clock = Clock()
     optimizer = build_optimizer(inputs, cfg)
     pieces = {"first problem, Gauss-Newton": clock.lap()}
     optimizer._nlp(optimizer.transcription, "exact")  # as the switch to the exact Hessian
@@ -104,35 +87,15 @@ def _median(runs: list[dict]) -> dict:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scenarios", nargs="+", default=["tiny", "s1_basket", "s2_trolley"])
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/to_build.json"))
-    args = parser.parse_args()
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
-    results = {}
-    for scenario in args.scenarios:
-        sizes = round_sizes(scenario)
-        runs = [build_once(scenario, sizes) for _ in range(args.repeats)]
-        results[scenario] = {"round_pairs": sizes, **_median(runs), "runs": runs}
-        print(
-            f"[to_build] {scenario}: build_time_s {results[scenario]['build_time_s']:.2f} "
-            f"(median of {args.repeats}; CPU {results[scenario]['total']['cpu_s']:.2f} s)",
-            flush=True,
-        )
-    write_json_atomic(
-        args.out,
-        {
-            "commit": commit,
-            "machine": f"{platform.machine()}, {platform.processor() or 'cpu'}",
-            "repeats": args.repeats,
-            "scenarios": results,
-        },
-    )
+def measure(scenario: str, repeats: int) -> dict:
+    sizes = round_sizes(scenario)
+    runs = [build_once(scenario, sizes) for _ in range(repeats)]
+    return {"round_pairs": sizes, **_median(runs), "runs": runs}
+
+
+def summary(result: dict) -> str:
+    return f"build_time_s {result['build_time_s']:.2f} (CPU {result['total']['cpu_s']:.2f} s)"
 
 
 if __name__ == "__main__":
-    main()
+    run(__doc__, "benchmarks/results/to_build.json", measure, summary)
