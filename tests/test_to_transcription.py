@@ -14,12 +14,14 @@ from locoman.config.to import ContactCfg
 from locoman.scene import g1
 from locoman.to.collision import KINDS, CollisionCfg, Obstacle
 from locoman.to.collision_pairs import CollisionPair, node_collision_pairs
+from locoman.to.compile import SolverBuildError
 from locoman.to.costs import CostWeights
 from locoman.to.inputs import sole_points
 from locoman.to.layout import KINEMATICS, N_KIN, NodeLayout, ObjectModel
 from locoman.to.modes import NodeMode, ObjectMode
 from locoman.to.spheres import FOREARM_LINKS, link_sphere_list
 from locoman.to.supports import Chassis, OnObject, Surface
+from locoman.to.terms import Calls, Rows, term_kind
 from locoman.to.terms.library import g1_terms
 from locoman.to.transcription import Numbers, Transcription, transcribe
 
@@ -566,3 +568,28 @@ def test_a_round_of_found_pairs_reuses_the_earlier_pairs_calls_and_builds_the_sa
     pairs = [*first.pairs, *found]
     again = transcribe(modes, P, heavier, g1_terms(), pairs, previous=first)
     _same_problem(again, transcribe(modes, P, heavier, g1_terms(), pairs))
+
+
+def test_calls_added_as_columns_stack_after_those_added_one_by_one():
+    kind = term_kind(
+        "scaled", {"a": 2, "b": 1}, {"w": 1, "m": 4}, lambda x, p: Rows(cost=p["w"] * x["b"])
+    )
+    matrix = np.arange(4.0).reshape(2, 2)
+    one_by_one, columns = Calls(kind), Calls(kind)
+    for i in range(3):
+        one_by_one.add({"a": [i, i + 1], "b": 7}, {"w": 0.5 * i, "m": matrix + i})
+    one_by_one.add({"a": [9, 8], "b": 1}, {"w": 2.0, "m": matrix})
+    columns.add({"a": [0, 1], "b": 7}, {"w": 0.0, "m": matrix})
+    columns.add_columns(
+        2,
+        {"a": np.array([[1, 2], [2, 3]]), "b": [7, 7]},
+        {"w": [0.5, 1.0], "m": np.stack([matrix + 1, matrix + 2])},
+    )
+    columns.add({"a": [9, 8], "b": 1}, {"w": 2.0, "m": matrix})
+    for got, want in zip(columns.arrays(), one_by_one.arrays(), strict=True):
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(got, want)
+    with pytest.raises(SolverBuildError, match="slot 'b' has values for 1 calls, not 2"):
+        columns.add_columns(2, {"a": [[1, 2], [3, 4]], "b": [7]}, {"w": [1, 2], "m": [matrix] * 2})
+    with pytest.raises(SolverBuildError, match=r"p slots missing \['m'\]"):
+        columns.add_columns(1, {"a": [[1, 2]], "b": [7]}, {"w": [1]})

@@ -250,10 +250,34 @@ class _Index:
         return self.kin(k, f"{HANDS[i]}_{quantity}")
 
     def sphere(self, k: int, sphere: RobotSphere) -> np.ndarray:
+        return self.virtual(k) + self._slots(sphere)
+
+    def _slots(self, sphere: RobotSphere) -> np.ndarray:
         slots = self._sphere_slots.get(sphere.name)
         if slots is None:
             slots = self._sphere_slots[sphere.name] = N_KIN + self.spheres.slots(sphere)
-        return self.virtual(k) + slots
+        return slots
+
+    # The same, for many nodes at once: (n,) nodes -> (n, size) indices.
+
+    def vars_at(self, k: np.ndarray, name: str) -> np.ndarray:
+        s = self.layout.variables[name]
+        return k[:, None] * self.width + np.arange(s.start, s.stop)
+
+    def objects_at(self, k: np.ndarray, objects: list[int], quantity: str) -> np.ndarray:
+        """Object ``objects[i]``'s ``quantity`` at node ``k[i]``."""
+        owners = np.asarray(objects, dtype=int)
+        slices = {j: self.layout.object_variables(j, quantity) for j in set(objects)}
+        size = {s.stop - s.start for s in slices.values()}.pop()
+        starts = np.zeros(max(slices) + 1, dtype=int)
+        for j, s in slices.items():
+            starts[j] = s.start
+        return k[:, None] * self.width + starts[owners][:, None] + np.arange(size)
+
+    def spheres_at(self, k: np.ndarray, spheres: list[RobotSphere]) -> np.ndarray:
+        """The centre of ``spheres[i]`` at node ``k[i]``."""
+        slots = np.array([self._slots(sphere) for sphere in spheres]).reshape(len(k), 3)
+        return self.n_x + k[:, None] * self.virtual_width + slots
 
     def link_spheres(self, k: int, link: str) -> np.ndarray:
         return self.virtual(k) + N_KIN + self.spheres.link_slots(link)
@@ -663,24 +687,12 @@ def _costs(b, at: _Index, modes, numbers: Numbers, robot: RobotTerms, P, par, op
             b.own(object_pose_kind()).add({"q": at.obj(k, j, "q")}, p)
 
 
-def _pair_inputs(at: _Index, k: int, pair: CollisionPair, robot: bool = True) -> dict:
-    """The variables of one pair at node k: its objects' poses and, with ``robot``, its
-    spheres' centres (for a pair between two nodes, where the configuration there puts
-    them)."""
-
-    def centre(sphere: RobotSphere) -> np.ndarray:
-        if pair.fraction > 0.0:
-            return at.sphere_between(pair.node, pair.fraction, sphere)
-        return at.sphere(k, sphere)
-
+def _robot_spheres(pair: CollisionPair) -> list[tuple[str, str]]:
+    """The pair's x slots that are a robot sphere's centre, each with the pair's attribute
+    holding that sphere."""
     if pair.geometry == "sphere_sphere":
-        return {"a": centre(pair.sphere), "b": centre(pair.other)} if robot else {}
-    x = {"c": centre(pair.sphere)} if pair.sphere is not None and robot else {}
-    if pair.box_obj is not None:
-        return x | {"q_a": at.obj(k, pair.obj, "q"), "q_o": at.obj(k, pair.box_obj, "q")}
-    if pair.obj is not None:
-        return x | {"q_o": at.obj(k, pair.obj, "q")}
-    return x
+        return [("a", "sphere"), ("b", "other")]
+    return [] if pair.sphere is None else [("c", "sphere")]
 
 
 def _collisions(
@@ -688,9 +700,8 @@ def _collisions(
 ) -> PairCalls:
     """Every pair under its kind's treatment, after ``reused``'s (a :class:`PairCalls`
     of the first pairs, or None); (13b) at each node with a homotopy pair."""
-    touching_margin = math.log(3.0) * cfg.smoothing_m
     homotopy_nodes = set()
-    # The calls of each (geometry, treatment, between) kind, looked up once per kind.
+    # The calls of each (geometry, treatment, between) kind, in the order the kinds come.
     calls: dict[tuple[str, str, bool], Calls] = {}
     start = 0
     if reused is not None:
@@ -700,42 +711,87 @@ def _collisions(
         at.between, at.n_y = dict(reused.between), reused.n_y
         homotopy_nodes |= reused.homotopy_nodes
         start = len(reused.pairs)
+    # The new pairs by kind, in order. The sphere centres between two nodes are virtual
+    # variables handed out as the pairs ask for them, so in the pairs' order.
+    groups: dict[tuple[str, str, bool], list[CollisionPair]] = {}
+    between: dict[tuple[str, str, bool], list[list[np.ndarray]]] = {}
     for pair in pairs[start:]:
-        treatment = getattr(cfg, pair.kind)
-        key = (pair.geometry, treatment, pair.fraction > 0.0)
+        key = (pair.geometry, getattr(cfg, pair.kind), pair.fraction > 0.0)
         if key not in calls:
             calls[key] = b.own(collision_kind(*key))
-        k = pair.node
-        x = _pair_inputs(at, k, pair)
-        if pair.geometry == "sphere_sphere":
-            radius = pair.sphere.radius + pair.other.radius + cfg.margin_m
-            p = {"radius": radius, "length": cfg.length_m}
-        else:
-            p = dict(pair.numbers)
-            if pair.sphere is not None:
-                p["radius"] = pair.sphere.radius
-            margin = touching_margin if pair.touching else cfg.margin_m
-            p |= {"margin": margin, "smoothing": cfg.smoothing_m, "length": cfg.length_m}
-        if treatment == "penalty":
-            p |= {"weight": w.collision, "softness": cfg.softness}
-        elif treatment == "homotopy":
-            x |= {"alpha": at.var(k, "alpha")}
-            p |= {"stand_in_margin": cfg.margin_m}
-            homotopy_nodes.add(k)
-        if pair.fraction > 0.0:
-            p["fraction"] = pair.fraction
-            x_next = _pair_inputs(at, k + 1, pair, robot=False)
-            if treatment == "homotopy":
-                x_next |= {"alpha": at.var(k + 1, "alpha")}
-                homotopy_nodes.add(k + 1)
-            x |= {f"{s}_next": v for s, v in x_next.items()}
-        calls[key].add(x, p)
+        groups.setdefault(key, []).append(pair)
+        if key[2]:
+            centres = [
+                at.sphere_between(pair.node, pair.fraction, getattr(pair, attr))
+                for _, attr in _robot_spheres(pair)
+            ]
+            between.setdefault(key, []).append(centres)
+    for key, group in groups.items():
+        x, p = _pair_columns(at, group, key, cfg, w, between.get(key))
+        calls[key].add_columns(len(group), x, p)
+        if key[1] == "homotopy":
+            nodes = {pair.node for pair in group}
+            homotopy_nodes |= nodes
+            if key[2]:
+                homotopy_nodes |= {k + 1 for k in nodes}
     stacked = {key: c.arrays() for key, c in calls.items()}
     for k in sorted(homotopy_nodes):
         b.own(homotopy_weight_kind()).add({"alpha": at.var(k, "alpha")}, {"weight": w.homotopy})
     return PairCalls(
         tuple(pairs), context, stacked, dict(at.between), at.n_y, frozenset(homotopy_nodes)
     )
+
+
+def _pair_columns(
+    at: _Index,
+    group: list[CollisionPair],
+    key: tuple[str, str, bool],
+    cfg: CollisionCfg,
+    w: CostWeights,
+    centres: list[list[np.ndarray]] | None,
+) -> tuple[dict, dict]:
+    """The x and p slots of the pairs of one (geometry, treatment, between) kind, each
+    slot's values for every pair at once: their objects' poses, their spheres' centres
+    (``centres``: those handed out between nodes, per pair) and their numbers."""
+    geometry, treatment, is_between = key
+    first, n = group[0], len(group)
+    k = np.fromiter((pair.node for pair in group), dtype=int, count=n)
+    x: dict[str, np.ndarray] = {}
+    for i, (slot, attr) in enumerate(_robot_spheres(first)):
+        if is_between:
+            x[slot] = np.array([c[i] for c in centres])
+        else:
+            x[slot] = at.spheres_at(k, [getattr(pair, attr) for pair in group])
+    if first.box_obj is not None:
+        objects = {"q_a": "obj", "q_o": "box_obj"}
+    elif first.obj is not None:
+        objects = {"q_o": "obj"}
+    else:
+        objects = {}
+    # A pair between nodes takes its objects' poses and alpha at both.
+    for node, suffix in [(k, ""), (k + 1, "_next")] if is_between else [(k, "")]:
+        for slot, attr in objects.items():
+            owners = [getattr(pair, attr) for pair in group]
+            x[slot + suffix] = at.objects_at(node, owners, "q")
+        if treatment == "homotopy":
+            x["alpha" + suffix] = at.vars_at(node, "alpha")
+    if geometry == "sphere_sphere":
+        radii = [pair.sphere.radius + pair.other.radius + cfg.margin_m for pair in group]
+        p = {"radius": radii, "length": np.full(n, cfg.length_m)}
+    else:
+        p = {name: [pair.numbers[name] for pair in group] for name in first.numbers}
+        if first.sphere is not None:
+            p["radius"] = [pair.sphere.radius for pair in group]
+        touching_margin = math.log(3.0) * cfg.smoothing_m
+        p["margin"] = [touching_margin if pair.touching else cfg.margin_m for pair in group]
+        p |= {"smoothing": np.full(n, cfg.smoothing_m), "length": np.full(n, cfg.length_m)}
+    if treatment == "penalty":
+        p |= {"weight": np.full(n, w.collision), "softness": np.full(n, cfg.softness)}
+    elif treatment == "homotopy":
+        p["stand_in_margin"] = np.full(n, cfg.margin_m)
+    if is_between:
+        p["fraction"] = [pair.fraction for pair in group]
+    return x, p
 
 
 def _between(b: _Builder, at: _Index, robot: RobotTerms, spheres: SphereSet) -> None:

@@ -130,16 +130,40 @@ class Calls:
         self._x.append(x)
         self._p.append(p)
 
+    def add_columns(self, n: int, x: Mapping[str, object], p: Mapping[str, object]) -> None:
+        """``n`` calls at once, each slot's values for every call (a sequence or an array
+        whose first axis is the call): a transcription's hundred thousand collision pairs
+        without a dict per call. They come after the calls so far."""
+        if x.keys() != self._x_keys or p.keys() != self._p_keys:
+            _refuse(self.kind, "x", self.kind.x_slots, x)
+            _refuse(self.kind, "p", self.kind.p_slots, p)
+        self._join(
+            _stacked(self.kind, "x", self.kind.x_slots, x, n, int),
+            _stacked(self.kind, "p", self.kind.p_slots, p, n, float),
+        )
+
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """(calls, nx) variable indices, (calls, np) numbers. The calls added so far are
         stacked once: later calls come after them."""
         if self._x or self._stacked is None:
-            x = _stacked(self.kind, "x", self.kind.x_slots, self._x, int)
-            p = _stacked(self.kind, "p", self.kind.p_slots, self._p, float)
-            if self._stacked is not None:
-                x, p = np.concatenate([self._stacked[0], x]), np.concatenate([self._stacked[1], p])
-            self._stacked, self._x, self._p = (x, p), [], []
+            n = len(self._x)
+            x = {slot: [c[slot] for c in self._x] for slot in self.kind.x_slots}
+            p = {slot: [c[slot] for c in self._p] for slot in self.kind.p_slots}
+            self._x, self._p = [], []
+            self._join(
+                _stacked(self.kind, "x", self.kind.x_slots, x, n, int),
+                _stacked(self.kind, "p", self.kind.p_slots, p, n, float),
+            )
         return self._stacked
+
+    def _join(self, x: np.ndarray, p: np.ndarray) -> None:
+        """Stacked calls after those stacked so far (the calls added one by one come
+        first: :meth:`arrays` stacks them)."""
+        if self._x:
+            self.arrays()
+        if self._stacked is not None:
+            x, p = np.concatenate([self._stacked[0], x]), np.concatenate([self._stacked[1], p])
+        self._stacked = (x, p)
 
     def own(self, rows: RowSpace) -> Block:
         """The block, its rows new (with the kind's bounds)."""
@@ -168,17 +192,22 @@ def _refuse(kind: TermKind, what: str, slots: Mapping[str, int], values: Mapping
 
 
 def _stacked(
-    kind: TermKind, what: str, slots: Mapping[str, int], calls: list[Mapping], dtype
+    kind: TermKind, what: str, slots: Mapping[str, int], columns: Mapping, n: int, dtype
 ) -> np.ndarray:
-    """(calls, sum of the slots' sizes): each slot's values, one row per call."""
-    n = len(calls)
+    """(n, sum of the slots' sizes): each slot's values (``columns[slot]``, one per call),
+    one row per call."""
     if n == 0:
         return np.zeros((0, sum(slots.values())), dtype=dtype)
     parts = []
     for slot, size in slots.items():
-        values = np.asarray([c[slot] for c in calls], dtype=dtype)
+        values = np.asarray(columns[slot], dtype=dtype)
         if values.ndim == 3:  # matrices, column-major as CasADi reshapes them
             values = values.transpose(0, 2, 1)
+        if values.ndim == 0 or len(values) != n:
+            raise SolverBuildError(
+                f"{kind.name}: {what} slot {slot!r} has values for "
+                f"{0 if values.ndim == 0 else len(values)} calls, not {n}"
+            )
         values = values.reshape(n, -1)
         if values.shape[1] != size:
             raise SolverBuildError(
