@@ -28,14 +28,13 @@ from common import Clock, run
 from locoman.artifacts import read_npz
 from locoman.config import load_params
 from locoman.config.to import scenario_solve
-from locoman.retarget.robot import contact_frames
 from locoman.scene.io import load_scene_model
 from locoman.sim.audit import close_pairs
 from locoman.to.found_pairs import Check, Scene, round_pairs, unmodelled
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.loading import load_inputs
 from locoman.to.optimizer import Trajectory
-from locoman.to.pair_search import trajectory_arrays
+from locoman.to.pair_search import solution_scene
 from locoman.to.pipeline import build_optimizer
 
 DATA = Path("data")
@@ -71,18 +70,7 @@ def measure(scenario: str, repeats: int) -> dict:
     inputs = load_inputs(root / "scene", root / "contacts", root / "retarget", cfg.contacts)
     optimizer = build_optimizer(inputs, cfg)
     traj = committed_solution(scenario)
-    seats = tuple(tuple(m.seat for m in mode.objects) for mode in optimizer.modes)
-    obstacles = {o.name: o for o in inputs.obstacles}
-    names = [obj.name for obj in inputs.objects]
-    scene = Scene(
-        inputs.objects,
-        traj.object_q,
-        obstacles,
-        contact_frames(),
-        schedule=trajectory_arrays(traj, names),
-        spacing_m=cfg.collision.found_spacing_m,
-        seats=seats,
-    )
+    scene = solution_scene(optimizer, traj, cfg.collision)
     model = load_scene_model(root / "scene")
     runs = [check_once(optimizer, model, scene, cfg.collision) for _ in range(repeats)]
     medians = {

@@ -16,6 +16,7 @@ import time
 import mujoco
 import numpy as np
 
+from locoman.retarget.robot import contact_frames
 from locoman.sim.audit import ClosePair, close_pairs
 from locoman.to.collision import (
     CollisionCfg,
@@ -210,6 +211,17 @@ def _rounds(
         traj = solved
         if not traj.success:
             return traj, [], [], promote
+
+
+def solution_scene(optimizer: TrajectoryOptimizer, traj: Trajectory, cfg: CollisionCfg) -> Scene:
+    """The scene a check replays ``traj`` in: the problem's objects along it, its
+    obstacles, the robot's contact frames, each node's seats and the solution's contact
+    schedule."""
+    inputs = optimizer.inputs
+    seats = tuple(tuple(m.seat for m in mode.objects) for mode in optimizer.modes)
+    obstacles = {o.name: o for o in inputs.obstacles}
+    scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames(), seats=seats)
+    return _checked(scene, traj, cfg)
 
 
 def _checked(scene: Scene, traj: Trajectory, cfg: CollisionCfg) -> Scene:

@@ -19,12 +19,11 @@ from locoman.scene.rotations import rpy_to_matrix
 from locoman.sim.audit import ClosePair
 from locoman.sim.foxglove import scene_entities
 from locoman.to.compile import cache_dir
-from locoman.to.found_pairs import Scene
 from locoman.to.inputs import TOInputs
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.loading import load_inputs
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
-from locoman.to.pair_search import Round, search
+from locoman.to.pair_search import Round, search, solution_scene
 from locoman.to.schedule import Schedule
 
 
@@ -78,9 +77,7 @@ def solve_scenario(
     inputs = load_inputs(scene_dir, contacts_dir, retarget_dir, cfg.contacts)
     optimizer = build_optimizer(inputs, cfg)
     traj = optimizer.solve()
-    obstacles = {o.name: o for o in inputs.obstacles}
-    seats = tuple(tuple(m.seat for m in mode.objects) for mode in optimizer.modes)
-    scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames(), seats=seats)
+    scene = solution_scene(optimizer, traj, cfg.collision)
     model = load_scene_model(scene_dir)
     traj, rounds, remaining, unfreed = search(optimizer, traj, model, scene, cfg.collision)
     if (remaining or unfreed) and traj.success:
