@@ -225,11 +225,23 @@ class Check:
     def candidates(self) -> list[list[CollisionPair]]:
         return [candidates(c, self.scene, self.around) for c in self.close]
 
+    @functools.cached_property
+    def nodes(self) -> frozenset[int]:
+        """The nodes of the candidates."""
+        return frozenset(p.node for pairs in self.candidates for p in pairs)
+
+
+def _known(existing: list[CollisionPair], nodes: frozenset[int] | set[int]) -> set[tuple]:
+    """The identities of ``existing``'s pairs at ``nodes``. An identity starts with its
+    node, so no other pair can be a candidate's; making one (the numbers rounded) for each
+    of a problem's 100 000 pairs was most of a first check's mapping."""
+    return {p.identity for p in existing if p.node in nodes}
+
 
 def found_pairs(check: Check, existing: list[CollisionPair]) -> list[CollisionPair]:
     """The :func:`candidates` of each of ``check``'s close pairs that ``existing`` lacks,
     once each."""
-    known = {p.identity for p in existing}
+    known = _known(existing, check.nodes)
     out = []
     for pairs in check.candidates:
         for pair in pairs:
@@ -275,7 +287,7 @@ def arm_pairs(
     link, box or node, and widened to the one arm, to the other arm (S1's Foot+WarmStart,
     2.5 kg, 0.6 rad: the left elbow's whole arm kept out of the basket, the right palm ended
     65 mm in its right wall)."""
-    known = {p.identity for p in existing}
+    known = _known(existing, {c.node + d for c in close for d in range(-around, around + 1)})
     done: set[tuple[str, Body, int]] = set()
     out = []
     for c in close:
@@ -304,7 +316,7 @@ def unmodelled(check: Check, existing: list[CollisionPair]) -> list[ClosePair]:
     """Those of ``check``'s close pairs that ``existing`` lacks a :func:`candidates` pair of
     (each has :func:`found_pairs`), with ``existing``'s keys made once: per close pair they
     took minutes on a check with thousands of pairs."""
-    known = {p.identity for p in existing}
+    known = _known(existing, check.nodes)
     return [
         c
         for c, pairs in zip(check.close, check.candidates, strict=True)
@@ -316,8 +328,8 @@ def promoted_pairs(check: Check, existing: list[CollisionPair]) -> list[Collisio
     """The pairs that keep coming back: for each of ``check``'s close pairs that penetrates
     although the problem has its pairs already, those pairs again as ``PROMOTED`` (the hard
     (11) by default), once each, where ``existing`` does not have them so yet."""
-    promoted = {p.identity for p in existing if p.kind == PROMOTED}
-    known = {p.identity for p in existing}
+    known = _known(existing, check.nodes)
+    promoted = _known([p for p in existing if p.kind == PROMOTED], check.nodes)
     out = []
     for c, pairs in zip(check.close, check.candidates, strict=True):
         if c.distance >= 0.0:
