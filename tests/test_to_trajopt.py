@@ -186,6 +186,15 @@ def test_second_order_corrections_reach_ipopt_and_keep_the_optimum(tmp_path_fact
     assert corrected.cost == pytest.approx(squat.cost, rel=1e-6)
 
 
+def test_mumps_scaling_reaches_ipopt_and_keeps_the_optimum(tmp_path_factory, squat):
+    """MUMPS's own scaling of the KKT matrix, off by default (17 iterations), on (16):
+    other pivots, another path, the same optimum."""
+    scaled = _optimizer(tmp_path_factory, max_iterations=200, mumps_scaling=True).solve()
+    assert squat.success and scaled.success, scaled.status
+    assert squat.iterations != scaled.iterations, squat.iterations
+    assert scaled.cost == pytest.approx(squat.cost, rel=1e-6)
+
+
 def test_step_count_is_even_and_bounded_by_length_and_turn():
     cfg = ScheduleCfg(step_length_m=0.25, step_yaw_rad=0.45, step_min_m=0.15)
     feet = np.array([[0.0, 0.1], [0.0, -0.1]])

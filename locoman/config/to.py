@@ -111,6 +111,12 @@ class SolverCfg:
             ``tolerance`` with IPOPT's barrier at its floor (S2's grid cells cycled there
             for hundreds of iterations); None: only at ``tolerance``.
         settled_iterations: How many such iterations in a row.
+        mumps_scaling: With MUMPS: let it scale the KKT matrix and permute it to a
+            maximum transversal before it factorises (IPOPT's ``mumps_scaling`` 77 and
+            ``mumps_permuting_scaling`` 7, MUMPS's automatic choices). False (default):
+            neither (both 0), since IPOPT scales the NLP already; the factorisations are
+            a third cheaper on S2 (0.195 s an iteration against 0.312) and two fifths on
+            ``tiny``, in as many iterations (``docs/performance.md``). SPRAL ignores it.
         second_order_corrections: IPOPT's ``max_soc``: how many times a trial step the
             filter rejects is corrected for the constraints' curvature before it is cut
             back. 0 (default) cuts it back at once: S2 in 456 iterations instead of 594 to
@@ -133,6 +139,7 @@ class SolverCfg:
     exact_when_stalled: float | None = None
     settled_change: float | None = 1e-7
     settled_iterations: int = 10
+    mumps_scaling: bool = False
     second_order_corrections: int = 0
 
     def check(self) -> list[tuple[str, str]]:

@@ -133,6 +133,8 @@ class TrajectoryOptimizer:
             "fixed_variable_treatment": "make_parameter",
             "max_soc": solver.second_order_corrections,
         }
+        if solver.backend == "ipopt_mumps" and not solver.mumps_scaling:
+            self._ipopt |= {"mumps_scaling": 0, "mumps_permuting_scaling": 0}
         if solver.max_wall_time_s is not None:
             self._ipopt["max_wall_time"] = float(solver.max_wall_time_s)
         exact = solver.hessian == "exact"
