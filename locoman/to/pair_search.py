@@ -120,7 +120,12 @@ def search(
         traj, remaining, unfreed, promote = _rounds(
             optimizer, traj, model, scene, cfg, pairs, rounds, totals, promote, seen
         )
-        if not (remaining or unfreed) or not traj.success or restarts == cfg.restarts:
+        # A round that failed (out of iterations from an optimum its new pairs moved by
+        # centimetres) restarts from the guess with every pair, as unfreed pairs do.
+        round_failed = not traj.success and bool(rounds) and not rounds[-1].restart
+        if restarts == cfg.restarts or not (remaining or unfreed or round_failed):
+            return totals.of(traj), rounds, remaining, unfreed
+        if not traj.success and not round_failed:
             return totals.of(traj), rounds, remaining, unfreed
         restarts += 1
         arms = []
@@ -129,7 +134,7 @@ def search(
             pairs.extend(arms)
         print(
             f"[solve] restart {restarts}: {len(remaining)} pairs missing, {len(unfreed)} "
-            f"unfreed; solving again from the guess with the {len(pairs)} pairs"
+            f"unfreed, round failed {round_failed}; solving again from the guess with the {len(pairs)} pairs"
             + (f" ({len(arms)} of them the found arms' whole)" if arms else ""),
             flush=True,
         )
