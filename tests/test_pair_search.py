@@ -417,7 +417,7 @@ def test_a_round_out_of_iterations_with_promoted_pairs_is_not_solved_again(scene
     NoKeyframe: 1000 more without them) ends the search with its status."""
     model, scene_, first = _sunk_box(scene)
     solver = _FailsWith(_with_promotions, "Maximum_Iterations_Exceeded")
-    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
     traj, rounds, _, _ = search(solver, first, model, scene_, cfg)
     assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True]
     assert [r.status for r in rounds] == ["Solve_Succeeded", "Maximum_Iterations_Exceeded"]
@@ -426,16 +426,47 @@ def test_a_round_out_of_iterations_with_promoted_pairs_is_not_solved_again(scene
 
 
 def test_a_round_that_fails_ends_the_search_with_its_failure(scene):
-    """A round whose solve fails without promotions to drop is the search's result: no
-    check of a failed point, no more rounds."""
+    """With no restart left, a round whose solve fails without promotions to drop is the
+    search's result: no check of a failed point, no more rounds."""
     model, scene_, first = _sunk_box(scene)
     solver = _FailsWith(lambda calls, _: calls == 1)
-    cfg = dataclasses.replace(CollisionCfg(), rounds=4)
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
     traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
     assert len(solver.pairs) == 1 and len(rounds) == 1
     assert not traj.success and traj.status == "Infeasible_Problem_Detected"
     assert rounds[0].status == "Infeasible_Problem_Detected" and rounds[0].demoted == 0
     assert missing == [] and unfreed == []
+
+
+def test_a_round_that_fails_restarts_from_the_guess_with_every_pair(scene):
+    """S2's Fig. 6 Foot at 5 kg, 1.2 rad: the first round runs out of iterations; with a
+    restart left, the search solves again from the guess with every pair found, the failed
+    round's too, and checks that solution."""
+    model, scene_, first = _sunk_box(scene)
+    solver = _FailsWith(lambda calls, _: calls == 1, "Maximum_Iterations_Exceeded")
+    solver.guess = _solved(_trajectory(np.tile(BOX_ON_TABLE, (NODES, 1))))
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=1)
+    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    assert solver.restarts == solver.pairs[:1]  # the failed round's pairs, all of them
+    assert [r.restart for r in rounds] == [False, True, False, False]  # then promotes
+    assert [r.status for r in rounds[:3]] == [
+        "Maximum_Iterations_Exceeded",
+        "Solve_Succeeded",
+        "Solve_Succeeded",
+    ]
+    assert rounds[-1].pairs_added == 0
+    assert traj.success and missing == [] and unfreed == []
+
+
+def test_a_restart_that_fails_ends_the_search_with_its_failure(scene):
+    """The restart after a failed round fails too: the search ends with it, no check."""
+    model, scene_, first = _sunk_box(scene)
+    solver = _FailsWith(lambda calls, _: True, "Maximum_Iterations_Exceeded")
+    solver.guess = first
+    cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=2)
+    traj, rounds, _, _ = search(solver, first, model, scene_, cfg)
+    assert len(solver.restarts) == 1 and [r.restart for r in rounds] == [False, True]
+    assert not traj.success and traj.status == "Maximum_Iterations_Exceeded"
 
 
 def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):

@@ -107,10 +107,11 @@ class CollisionCfg:
             they are.
         rounds: The most rounds of :attr:`found` pairs after the first solve (and after
             each restart).
-        restarts: When the rounds end with pairs missing or unfreed, the solve starts again
-            from Sec. IV-C.2's guess with every pair found so far (present from the first
-            iteration, they keep the motion out of the minimum that held it), and the rounds
-            go on from its solution; at most this many times (0: never).
+        restarts: When the rounds end with pairs missing or unfreed, or a round's solve
+            fails, the solve starts again from Sec. IV-C.2's guess with every pair found so
+            far (present from the first iteration, they keep the motion out of the minimum
+            that held it), and the rounds go on from its solution; at most this many times
+            (0: never).
         restart_arm_nodes: A restart keeps both arms whole out of each body (an object,
             a fixed object, the floor) that the checks found an arm's link against: every
             link from shoulder to palm against every box of that body, at up to this many

@@ -93,13 +93,13 @@ def search(
     cfg: CollisionCfg,
 ) -> tuple[Trajectory, list[Round], list[ClosePair], list[ClosePair]]:
     """Check ``traj``, add the pairs it needs and solve on from it, at most ``cfg.rounds``
-    times (:func:`_rounds`); if pairs are left missing or unfreed, solve again from Sec.
-    IV-C.2's guess with every pair found so far and go on with the rounds from there, at
-    most ``cfg.restarts`` times. Returns the last trajectory (its iterations and solve time
-    those of every solve), the rounds, the close pairs the problem still lacks pairs for
-    after the last check (empty: the solution needs none it lacks) and those still deeper
-    than ``cfg.unfreed_m``, modelled or not; with ``found`` off, no rounds or a failed
-    ``traj``: ``traj``.
+    times (:func:`_rounds`); if pairs are left missing or unfreed or a round fails, solve
+    again from Sec. IV-C.2's guess with every pair found so far and go on with the rounds
+    from there, at most ``cfg.restarts`` times. Returns the last trajectory (its iterations
+    and solve time those of every solve), the rounds, the close pairs the problem still
+    lacks pairs for after the last check (empty: the solution needs none it lacks) and
+    those still deeper than ``cfg.unfreed_m``, modelled or not; with ``found`` off, no
+    rounds or a failed ``traj``: ``traj``.
 
     Why start again: pairs that join a solution already through an object can hold it in
     a local minimum that they cannot free. S1 without the keyframes' warm start: the first
@@ -107,8 +107,10 @@ def search(
     once found, the floor's pair pushes the wrist down into the shelf and the shelf's pair
     pushes it up (three rounds, 30 mm deep at the end). Present from the first iteration,
     the same pairs kept the reach out in three of the six S1 Fig. 6 cells that ended so
-    (docs/figures.md). A failed solve ends the search with that failure: its point is no
-    motion to check.
+    (docs/figures.md). A round whose solve fails (out of iterations, its point no motion to
+    check) starts again the same way while restarts remain (S2's Fig. 6 Foot at 5 kg,
+    1.2 rad: the first round runs out of iterations, the restart converges); a failed
+    restart ends the search with its failure.
     """
     pairs = list(optimizer.transcription.pairs)
     rounds: list[Round] = []
@@ -120,16 +122,24 @@ def search(
         traj, remaining, unfreed, promote = _rounds(
             optimizer, traj, model, scene, cfg, pairs, rounds, totals, promote, seen
         )
-        if not (remaining or unfreed) or not traj.success or restarts == cfg.restarts:
+        # A round that failed (out of iterations from an optimum its new pairs moved by
+        # centimetres) leaves no motion to check: like pairs left missing or unfreed, it
+        # sends the search back to the guess, now with every pair found.
+        if restarts == cfg.restarts or (traj.success and not (remaining or unfreed)):
             return totals.of(traj), rounds, remaining, unfreed
         restarts += 1
         arms = []
         if cfg.restart_arm_nodes > 0:
             arms = arm_pairs(seen, pairs, _checked(scene, traj, cfg), cfg.restart_arm_nodes)
             pairs.extend(arms)
+        why = (
+            f"{len(remaining)} pairs missing, {len(unfreed)} unfreed"
+            if traj.success
+            else f"the round ended {traj.status}"
+        )
         print(
-            f"[solve] restart {restarts}: {len(remaining)} pairs missing, {len(unfreed)} "
-            f"unfreed; solving again from the guess with the {len(pairs)} pairs"
+            f"[solve] restart {restarts}: {why}; solving again from the guess with the "
+            f"{len(pairs)} pairs"
             + (f" ({len(arms)} of them the found arms' whole)" if arms else ""),
             flush=True,
         )
@@ -166,8 +176,9 @@ def _rounds(
     solved again without the promotions (their pairs keep the penalty (12) they joined
     with), and no later round promotes: (11) on a pair that keeps coming back can leave no
     feasible point near the previous optimum (S1: an elbow held out of the shelf while the
-    hand holds the basket). Another failure is not retried: a solve that ran out of
-    iterations would likely run out again (S2: 2 x 1000 iterations, 45 min).
+    hand holds the basket). Another failure is not retried from the same point: a solve
+    that ran out of iterations would likely run out again (S2: 2 x 1000 iterations,
+    45 min); :func:`search` restarts from the guess instead.
     """
     after = 0
     while True:
