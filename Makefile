@@ -13,8 +13,6 @@ export PATH := $(abspath $(BIN)):$(PATH)
 
 setup: $(STAMP)
 
-# `--no-compile`: Python compiles a module's bytecode when it is first imported; byte-compiling
-# every installed file up front (torch's, dvc's) took half the set-up (105 s against 52 s).
 # MuJoCo renders off-screen through libEGL and the TO compiles C with gcc (tcc, if there, for
 # -O0 builds), which fresh Debian images may lack; everything else is on PyPI.
 $(STAMP): pyproject.toml requirements.lock
@@ -22,7 +20,7 @@ $(STAMP): pyproject.toml requirements.lock
 	@command -v tcc >/dev/null || bash .ci/install-system-deps || echo "locoman: no tcc; the TO's -O0 builds use gcc"
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q --no-compile -c requirements.lock -e ".[dev]"
+	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev]"
 	@[ -d .dvc ] || $(BIN)/dvc init -q
 	touch $(STAMP)
 
@@ -30,7 +28,7 @@ $(STAMP): pyproject.toml requirements.lock
 # tests run each of them on small models they build.
 LEARNED := $(VENV)/.installed-learned
 $(LEARNED): $(STAMP)
-	$(BIN)/python -m pip install -q --no-compile -c requirements.lock -e ".[dev,learned]"
+	$(BIN)/python -m pip install -q -c requirements.lock -e ".[dev,learned]"
 	touch $(LEARNED)
 
 # The DAG in two arms at once, one per core (`locoman/repro.py` says why it is done this way).
