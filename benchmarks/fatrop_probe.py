@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import os
 import platform
 import statistics
@@ -29,6 +28,8 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+
+from locoman.artifacts import write_json_atomic
 
 OUT = Path(__file__).parent / "results" / "fatrop_probe.json"
 
@@ -138,10 +139,7 @@ def main() -> None:
     for name in SOLVERS:
         result[name] = measure(name, args)
         print(name, result[name]["median_seconds_per_iteration_outside_functions"], flush=True)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(result, indent=1) + "\n")
-    tmp.replace(args.out)
+    write_json_atomic(args.out, result)
 
 
 if __name__ == "__main__":
