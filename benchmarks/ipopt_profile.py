@@ -43,11 +43,14 @@ from locoman.to.pipeline import solve_scenario
 for options in to_cfg.BACKENDS.values():
     options["print_timing_statistics"] = "yes"
     options.update(json.loads(os.environ["LOCOMAN_IPOPT_OPTIONS"]))
+import dataclasses
 params = load_params()
+# IPOPT's table (print level 5) is what the parent parses.
+solver = dataclasses.replace(params.solve.solver, print_level=5)
 root = Path("data") / sys.argv[1]
 with tempfile.TemporaryDirectory() as tmp:
     inputs = [root / "scene", root / "contacts", root / "retarget"]
-    traj = solve_scenario(*inputs, Path(tmp), params.solve)
+    traj = solve_scenario(*inputs, Path(tmp), dataclasses.replace(params.solve, solver=solver))
 print("@@ status", traj.status, traj.iterations, traj.solve_time_s, flush=True)
 """
 

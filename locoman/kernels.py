@@ -24,10 +24,22 @@ _NUMPY_AVX512 = (
     "AVX512F", "AVX512CD", "AVX512_KNL", "AVX512_KNM", "AVX512_SKX", "AVX512_CLX", "AVX512_CNL",
     "AVX512_ICL", "AVX512_SPR",
 )  # fmt: skip
-_OPENCV_AVX512 = (
-    "AVX512_COMMON", "AVX512_SKX", "AVX512_KNL", "AVX512_KNM", "AVX512_CNL", "AVX512_CLX",
-    "AVX512_ICL",
-)  # fmt: skip
+# OpenCV's names of its AVX-512 dispatch groups (``cv::getCPUFeaturesLine()``, hyphenated),
+# each with the Linux CPU flags it needs: OpenCV warns about a name it does not know or a
+# group this CPU lacks, so only the groups the CPU has are disabled.
+_OPENCV_AVX512 = {
+    "AVX512-COMMON": ("avx512f", "avx512cd"),
+    "AVX512-SKX": ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"),
+    "AVX512-KNL": ("avx512f", "avx512cd", "avx512er", "avx512pf"),
+    "AVX512-KNM": ("avx512f", "avx512cd", "avx512er", "avx512pf", "avx512_4fmaps",
+                   "avx512_4vnniw", "avx512_vpopcntdq"),
+    "AVX512-CNL": ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl", "avx512ifma",
+                   "avx512vbmi"),
+    "AVX512-CLX": ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl", "avx512_vnni"),
+    "AVX512-ICL": ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl", "avx512ifma",
+                   "avx512vbmi", "avx512_vnni", "avx512_vbmi2", "avx512_bitalg",
+                   "avx512_vpopcntdq"),
+}  # fmt: skip
 
 
 def cpu_flags(cpuinfo: Path = Path("/proc/cpuinfo")) -> set[str]:
@@ -50,8 +62,9 @@ def kernel_pins(machine: str, flags: set[str]) -> dict[str, str]:
         # NumPy's dispatched loops (sums; exp, log, trig through SVML) above AVX2.
         "NPY_DISABLE_CPU_FEATURES": ",".join(_NUMPY_AVX512),
     }
-    if "avx512f" in flags:  # OpenCV warns about every name its CPU does not have
-        pins["OPENCV_CPU_DISABLE"] = ",".join(_OPENCV_AVX512)
+    opencv = [name for name, needs in _OPENCV_AVX512.items() if set(needs) <= flags]
+    if opencv:
+        pins["OPENCV_CPU_DISABLE"] = ",".join(opencv)
     return pins
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import json
+import logging
 import os
 import re
 import shutil
@@ -132,6 +133,18 @@ def summary_line(stage: str, argv: list[str], out: Path) -> str:
     return f"[{name}] wrote {out}/ ({len(files)} files, {size / 1e6:.1f} MB); {result}"
 
 
+def configure_logging(name: str, level: int = logging.INFO) -> None:
+    """The library's log lines (``locoman.*`` at ``level``) on standard output, each
+    prefixed ``[name]`` as the stage's summary line is: a stage's progress beside other
+    stages' in one log (``make run``'s two arms)."""
+    handler = logging.StreamHandler(sys.stdout)
+    handler.setFormatter(logging.Formatter(f"[{name}] %(message)s"))
+    logger = logging.getLogger("locoman")
+    logger.handlers[:] = [handler]
+    logger.setLevel(level)
+    logger.propagate = False
+
+
 def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
     """Run a stage: ``main(outputs, *argv)`` writes into the folders
     :meth:`StageOutputs.folder` gives and returns its output folder. The outputs appear
@@ -146,6 +159,8 @@ def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
     OpenBLAS, with MUMPS), the limit those loaded.
     """
     outputs = StageOutputs()
+    stage = Path(inspect.getsourcefile(main) or "stage").stem
+    configure_logging(" ".join([stage, *argv]))
     try:
         inspect.signature(main).bind(outputs, *argv)
     except TypeError as exc:
@@ -168,5 +183,4 @@ def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
         sys.exit(2)
     out = outputs.final(out)
     outputs.commit()
-    stage = Path(inspect.getsourcefile(main) or "stage").stem
     print(summary_line(stage, argv, out), flush=True)

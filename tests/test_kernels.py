@@ -21,9 +21,35 @@ def test_pins_keep_an_avx512_cpu_at_avx2_kernels():
     pins = kernel_pins("x86_64", {"avx2", "fma", "avx512f"})
     assert pins["OPENBLAS_CORETYPE"] == "Haswell"
     assert "AVX512_SKX" in pins["NPY_DISABLE_CPU_FEATURES"].split(",")
-    assert "AVX512_SKX" in pins["OPENCV_CPU_DISABLE"].split(",")
-    # OpenCV warns about names its CPU lacks: without AVX-512 it is left alone.
+    # OpenCV names its groups with a hyphen and warns about any group the CPU lacks: only
+    # those whose every flag the CPU has are disabled, none without AVX-512.
+    assert "OPENCV_CPU_DISABLE" not in pins
+    skx = {"avx2", "fma", "avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}
+    assert kernel_pins("x86_64", skx)["OPENCV_CPU_DISABLE"].split(",") == [
+        "AVX512-COMMON",
+        "AVX512-SKX",
+    ]
     assert "OPENCV_CPU_DISABLE" not in kernel_pins("x86_64", {"avx2", "fma"})
+
+
+@pytest.mark.skipif(
+    "OPENCV_CPU_DISABLE" not in kernel_pins("x86_64", cpu_flags()),
+    reason="this CPU has no AVX-512 group of OpenCV's: nothing to disable",
+)
+def test_opencv_takes_the_pin_without_a_warning():
+    """The pin reaches OpenCV's dispatcher (its AVX-512 group marked ``?``: disabled) and
+    OpenCV prints nothing about it (it printed a line per unknown name into every log)."""
+    code = (
+        "from locoman.kernels import pin_kernels\npin_kernels()\n"
+        "import cv2\nprint(cv2.getCPUFeaturesLine())"
+    )
+    pins = kernel_pins("x86_64", cpu_flags())
+    env = {k: v for k, v in os.environ.items() if k not in pins}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    assert "OPENCV" not in out.stderr
+    assert "AVX512-SKX?" in out.stdout
 
 
 @pytest.mark.parametrize(

@@ -5,6 +5,8 @@ but for the residuals' Gauss-Newton Hessian where a flavour asks for it."""
 from __future__ import annotations
 
 import dataclasses
+import logging
+import re
 
 import casadi as ca
 import numpy as np
@@ -247,3 +249,26 @@ def test_a_problem_with_more_rows_keeps_the_multipliers_of_the_calls_it_shares()
     again = carried_multipliers(warm, changed, rows.size)
     np.testing.assert_array_equal(again.lam_g, [0, 0, 1, 2, 0, 0, 0, 0])
     assert carried_multipliers(dataclasses.replace(warm, rows=None), new, rows.size) is None
+
+
+def test_a_solve_logs_its_progress_every_few_iterations(caplog) -> None:
+    """With ``progress_every`` the solve logs the iteration, the objective and the largest
+    constraint violation under its label, the first line at the start point; the iterates
+    are those of a solve without it."""
+    rows = RowSpace()
+    blocks = _blocks(rows)
+    derivatives = load_derivatives([b.term for b in blocks], None)
+    options = {"print_level": 0, "sb": "yes", "max_iter": 7}
+    quiet = BlockNLP(N_X, blocks, rows, derivatives, "exact", options)
+    logged = BlockNLP(N_X, blocks, rows, derivatives, "exact", options, progress_every=3)
+    args = (np.full(N_X, 0.3), np.full(N_X, -5.0), np.full(N_X, 5.0), parameter_vector(blocks))
+    with caplog.at_level(logging.INFO, logger="locoman.to.progress"):
+        result = logged.solve(*args, label="round 2")
+    lines = [r.getMessage() for r in caplog.records if r.name == "locoman.to.progress"]
+    iterations = [int(re.search(r"iteration (\d+),", line).group(1)) for line in lines]
+    assert iterations == list(range(0, result.iterations + 1, 3))
+    assert all(line.startswith("round 2: iteration ") for line in lines)
+    g0 = np.asarray(logged.oracles["jac_g"](args[0], args[3])[0]).ravel()
+    violation = max(np.max(logged.lbg - g0, initial=0.0), np.max(g0 - logged.ubg, initial=0.0))
+    assert f"constraint violation {violation:.1e}" in lines[0]
+    np.testing.assert_array_equal(result.x, quiet.solve(*args).x)

@@ -79,7 +79,11 @@ class SolverCfg:
             kinematics most of it) and every solve runs faster for it; ``-O0`` builds
             with tcc where it is installed (a few seconds), for slower evaluations
             (``benchmarks/results/to_solvers.json``).
-        print_level: IPOPT's print level (5: one line per iteration, the progress).
+        print_level: IPOPT's print level: 0 (default) prints nothing of IPOPT's own; 5
+            its table, a line per iteration.
+        progress_every: Iterations between two progress lines of a solve (iteration,
+            objective, constraint violation, phase or round; the ``logging`` logger
+            ``locoman.to.progress``); 0: none.
         warm_start: Sec. IV-C.2: each subtask's nodes start at its keyframe; otherwise
             every node starts at the initial state.
         max_wall_time_s: IPOPT's max_wall_time [s]: a solve stopped by it is a failed solve
@@ -131,7 +135,8 @@ class SolverCfg:
     constraint_tolerance: float = 1e-8
     compile: bool = True
     compile_flags: list[str] = field(default_factory=lambda: ["-O1"])
-    print_level: int = 5
+    print_level: int = 0
+    progress_every: int = 25
     warm_start: bool = True
     max_wall_time_s: float | None = None
     hessian: str = "gauss_newton"
@@ -153,6 +158,8 @@ class SolverCfg:
             errors.append(("constraint_tolerance", "must be > 0"))
         if not 0 <= self.print_level <= 12:
             errors.append(("print_level", "IPOPT's print level is 0..12"))
+        if self.progress_every < 0:
+            errors.append(("progress_every", "must be >= 0 iterations (0: no progress lines)"))
         if self.backend not in BACKENDS:
             errors.append(("backend", f"must be one of {sorted(BACKENDS)}"))
         if self.max_wall_time_s is not None and not self.max_wall_time_s > 0.0:

@@ -40,6 +40,7 @@ import numpy as np
 
 from locoman.to.compile import Recipe, SolverBuildError, load_or_compile
 from locoman.to.oracles import OracleCallback, Oracles, unavailable_jacobian
+from locoman.to.progress import ProgressLog
 
 # The Hessian flavours: without the constraints' curvature; with it, each call's projected
 # onto the positive semidefinite cone (:mod:`locoman.to.convexify`); with it as it is.
@@ -374,6 +375,8 @@ class BlockNLP:
         n_y: Virtual variables.
         previous: An NLP whose blocks may be the first calls of these (the round before
             this one): its patterns are extended, not made again (:class:`Oracles`).
+        progress_every: Iterations between two progress lines
+            (:class:`locoman.to.progress.ProgressLog`); 0: none.
     """
 
     def __init__(
@@ -386,6 +389,7 @@ class BlockNLP:
         ipopt: dict,
         n_y: int = 0,
         previous: BlockNLP | None = None,
+        progress_every: int = 0,
     ) -> None:
         tic = time.perf_counter()
         if hessian not in HESSIANS:
@@ -394,6 +398,11 @@ class BlockNLP:
         self.lbg, self.ubg = rows.bounds()
         self.key = structure_key(n_x + n_y, blocks)
         self.n_p = sum(b.p.size for b in blocks)
+        self.progress = (
+            ProgressLog(n_x, self.n_g, self.n_p, self.lbg, self.ubg, progress_every)
+            if progress_every > 0
+            else None
+        )
         before = previous.evaluate if previous is not None else None
         evaluate = Oracles(n_x, blocks, self.n_g, derivatives, hessian, n_y, before)
         self.evaluate = evaluate
@@ -438,6 +447,11 @@ class BlockNLP:
     def ipopt(self, options: dict) -> ca.Function:
         """An IPOPT instance on this NLP's oracles with ``options``."""
         opts = {"print_time": False, "calc_lam_p": False, "ipopt": options, **self.oracles}
+        if self.progress is not None:
+            opts |= {
+                "iteration_callback": self.progress,
+                "iteration_callback_step": self.progress.every,
+            }
         return ca.nlpsol("to", "ipopt", self._problem, opts)
 
     def solve(
@@ -448,11 +462,12 @@ class BlockNLP:
         p: np.ndarray,
         warm: WarmStart | None = None,
         limits: dict | None = None,
+        label: str = "solve",
     ) -> NLPResult:
         """Solve from ``x0``, or from ``warm``'s primal-dual point (IPOPT's warm start), with
         the numbers ``p`` (:func:`parameter_vector`); ``limits``: IPOPT options for this
-        solve only (``max_iter``, ``max_wall_time``). A failed solve is returned with
-        IPOPT's status, not raised."""
+        solve only (``max_iter``, ``max_wall_time``); ``label``: what the progress lines
+        call this solve. A failed solve is returned with IPOPT's status, not raised."""
         if p.shape != (self.n_p,):
             raise SolverBuildError(f"p has shape {p.shape}; this NLP takes ({self.n_p},)")
         args = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": self.lbg, "ubg": self.ubg, "p": p}
@@ -467,6 +482,8 @@ class BlockNLP:
         if limits:
             options = self._options | (WARM_START_OPTIONS if warm is not None else {})
             solver = self.ipopt(options | limits)
+        if self.progress is not None:
+            self.progress.start(label)
         tic = time.perf_counter()
         with _heap_kept(), _single_threaded_blas():
             out = solver(**args)

@@ -27,6 +27,7 @@ import dataclasses
 import hashlib
 import inspect
 import json
+import logging
 import os
 import shutil
 import subprocess
@@ -38,6 +39,8 @@ from pathlib import Path
 import casadi as ca
 
 from locoman.errors import SolverError
+
+log = logging.getLogger(__name__)
 
 CACHE_ENV = "LOCOMAN_CACHE_DIR"
 
@@ -270,13 +273,12 @@ def _compile_all(
     jobs: int,
     directory: Path,
 ) -> None:
-    """Build the biggest units first (they bound the wall time), printing each as it ends."""
+    """Build the biggest units first (they bound the wall time), logging as they end."""
     units = sorted(units, key=lambda u: -len(u.source))
     size = sum(len(u.source) for u in units) / 1e6
-    print(
-        f"[to] compiling {len(units)} libraries ({size:.1f} MB of C, {compiler} "
-        f"{' '.join(flags)}, {jobs} at a time) into {directory}; once per robot",
-        flush=True,
+    log.info(
+        f"compiling {len(units)} libraries ({size:.1f} MB of C, {compiler} "
+        f"{' '.join(flags)}, {jobs} at a time) into {directory}; once per robot"
     )
     tic = time.perf_counter()
 
@@ -290,8 +292,15 @@ def _compile_all(
         for done, future in enumerate(as_completed(futures), start=1):
             unit = futures[future]
             seconds = future.result()
-            print(
-                f"[to]   {done}/{len(units)} {unit.name} ({len(unit.source) / 1e6:.1f} MB) "
-                f"in {seconds:.0f} s; {time.perf_counter() - tic:.0f} s elapsed",
-                flush=True,
+            # Each library at DEBUG; a line per tenth of them (and the last) at INFO.
+            level = logging.INFO if done % max(len(units) // 10, 1) == 0 else logging.DEBUG
+            log.log(
+                logging.INFO if done == len(units) else level,
+                "%d/%d %s (%.1f MB) in %.0f s; %.0f s elapsed",
+                done,
+                len(units),
+                unit.name,
+                len(unit.source) / 1e6,
+                seconds,
+                time.perf_counter() - tic,
             )

@@ -9,6 +9,7 @@ point with the exact one.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from pathlib import Path
 
@@ -35,6 +36,8 @@ from locoman.to.schedule import build_schedule
 from locoman.to.supports import Support
 from locoman.to.terms.library import all_kinds, g1_terms
 from locoman.to.transcription import Numbers, Transcription, transcribe
+
+log = logging.getLogger(__name__)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -199,6 +202,7 @@ class TrajectoryOptimizer:
                 self._ipopt | first | settled,
                 transcription.n_y,
                 latest[-1] if latest else None,
+                self.cfg.solver.progress_every,
             )
         return self._nlps[key]
 
@@ -242,6 +246,7 @@ class TrajectoryOptimizer:
         warm_start: Trajectory | None = None,
         pairs: list[CollisionPair] | None = None,
         hessian: str | None = None,
+        label: str = "first solve",
     ) -> Trajectory:
         """Solve; a failed solve is a trajectory with ``success`` False, not an exception.
 
@@ -255,6 +260,7 @@ class TrajectoryOptimizer:
             pairs: The collision pairs; default: the configuration's.
             hessian: The Hessian (:data:`locoman.to.assembly.HESSIANS`) of this solve;
                 default: the configuration's, with its switch to the exact one.
+            label: What the progress lines call this solve (a round of found pairs).
         """
         numbers = numbers or self.numbers
         # The problem the optimizer was built with, or another one's transcription.
@@ -290,7 +296,7 @@ class TrajectoryOptimizer:
                 X0 = np.clip(warm_start.warm_start.x, lo.ravel(order="F"), hi.ravel(order="F"))
         p = parameter_vector(tr.blocks)
         args = (X0, lo.ravel(order="F"), hi.ravel(order="F"), p)
-        result = nlp.solve(*args, warm)
+        result = nlp.solve(*args, warm, label=f"{label}, {hessian.replace('_', '-')} Hessian")
         stalled = result.status == "Solved_To_Acceptable_Level"
         if switch_at is None or (not stalled and (result.success or result.iterations < switch_at)):
             return self._trajectory(result, tr, nlp, hessian)
@@ -301,13 +307,12 @@ class TrajectoryOptimizer:
             limits["max_wall_time"] = max(
                 self.cfg.solver.max_wall_time_s - result.solve_time_s, 1.0
             )
-        print(
-            f"[solve] not converged after {result.iterations} iterations with the {hessian} "
-            f"Hessian ({result.status}): on with the exact one",
-            flush=True,
+        log.info(
+            f"not converged after {result.iterations} iterations with the {hessian} "
+            f"Hessian ({result.status}): on with the exact one"
         )
         exact = self._nlp(tr, "exact")
-        polished = exact.solve(*args, result.warm_start, limits)
+        polished = exact.solve(*args, result.warm_start, limits, f"{label}, exact Hessian")
         return self._trajectory(polished, tr, nlp, "exact", before=result)
 
     def _trajectory(

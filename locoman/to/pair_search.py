@@ -11,6 +11,7 @@ round costs a new assembly (seconds) and the warm-started solve.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 
 import mujoco
@@ -33,6 +34,8 @@ from locoman.to.found_pairs import (
     unmodelled,
 )
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
+
+log = logging.getLogger(__name__)
 
 
 def trajectory_arrays(traj: Trajectory, names: list[str]) -> dict[str, np.ndarray]:
@@ -137,14 +140,13 @@ def search(
             if traj.success
             else f"the round ended {traj.status}"
         )
-        print(
-            f"[solve] restart {restarts}: {why}; solving again from the guess with the "
+        log.info(
+            f"restart {restarts}: {why}; solving again from the guess with the "
             f"{len(pairs)} pairs"
-            + (f" ({len(arms)} of them the found arms' whole)" if arms else ""),
-            flush=True,
+            + (f" ({len(arms)} of them the found arms' whole)" if arms else "")
         )
         tic = time.perf_counter()
-        traj = optimizer.solve(pairs=pairs)
+        traj = optimizer.solve(pairs=pairs, label=f"restart {restarts}")
         seconds = time.perf_counter() - tic
         solved = _round([], None, arms, traj, seconds, traj.iterations)
         rounds.append(dataclasses.replace(solved, restart=True))
@@ -193,27 +195,28 @@ def _rounds(
             unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
             return traj, unmodelled(check, pairs), unfreed, promote
         after += 1
-        print(
-            f"[solve] round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
-            f"{len(new)} pairs added; solving on",
-            flush=True,
+        log.info(
+            f"round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
+            f"{len(new)} pairs added; solving on"
         )
         tic = time.perf_counter()
         # From an optimum, the exact Hessian converges in a few iterations where the
         # Gauss-Newton one, cycling near the penalties' optimum, used all 150 of its own.
-        solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
+        label = f"round {after}"
+        solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact", label=label)
         iterations, promoted = solved.iterations, [p for p in new if p.kind == PROMOTED]
         demoted = len(promoted) if solved.status in INFEASIBLE else 0
         if demoted:
-            print(
-                f"[solve] round {after} ended {solved.status} with {demoted} pairs "
-                "promoted to (11); solving it again without them, and promoting none from here",
-                flush=True,
+            log.info(
+                f"round {after} ended {solved.status} with {demoted} pairs "
+                "promoted to (11); solving it again without them, and promoting none from here"
             )
             totals.add(solved)
             promote = "off"
             new = [p for p in new if p.kind != PROMOTED]
-            solved = optimizer.solve(pairs=pairs + new, warm_start=traj, hessian="exact")
+            solved = optimizer.solve(
+                pairs=pairs + new, warm_start=traj, hessian="exact", label=label
+            )
             iterations += solved.iterations
         pairs.extend(new)
         seconds = time.perf_counter() - tic

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -25,6 +26,8 @@ from locoman.to.loading import load_inputs
 from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
 from locoman.to.pair_search import Round, search, solution_scene
 from locoman.to.schedule import Schedule
+
+log = logging.getLogger(__name__)
 
 
 def _poses(traj: Trajectory, names: list[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -60,11 +63,10 @@ def build_optimizer(inputs: TOInputs, cfg: SolveCfg) -> TrajectoryOptimizer:
     """The TO of ``inputs`` with the settings of ``cfg`` (its terms compiled, or loaded from
     the cache, once per robot)."""
     optimizer = TrajectoryOptimizer(inputs, cfg, cache_dir(cfg.cache_dir))
-    print(
-        f"[solve] {optimizer.schedule.nodes} nodes, {optimizer.nlp.n_x} variables, "
+    log.info(
+        f"{optimizer.schedule.nodes} nodes, {optimizer.nlp.n_x} variables, "
         f"{optimizer.nlp.n_g} constraints, {len(optimizer.transcription.pairs)} collision "
-        f"pairs, built in {optimizer.build_time_s:.1f} s",
-        flush=True,
+        f"pairs, built in {optimizer.build_time_s:.1f} s"
     )
     return optimizer
 
