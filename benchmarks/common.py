@@ -5,13 +5,15 @@ beside it (run as ``python benchmarks/<script>.py``, which puts this folder on t
 from __future__ import annotations
 
 import argparse
+import datetime
+import os
 import platform
-import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 from locoman.artifacts import write_json_atomic
+from locoman.grid.provenance import head_commit
 
 
 class Clock:
@@ -27,21 +29,25 @@ class Clock:
         return lap
 
 
+def stamped(record: dict) -> dict:
+    """``record`` with the commit it ran at (``+``: with uncommitted changes to the library
+    or the parameters), the date and the machine, which ``make results`` reports."""
+    return {
+        **record,
+        "commit": head_commit(Path(".")),
+        "date": datetime.date.today().isoformat(),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+    }
+
+
+def write_benchmark(out: str | Path, record: dict) -> None:
+    """A benchmark's JSON, :func:`stamped`, written atomically."""
+    write_json_atomic(out, stamped(record))
+
+
 def write_results(out: Path, repeats: int, scenarios: dict) -> None:
-    """``scenarios``' results to ``out`` (JSON, atomically), with the commit checked out
-    and the machine."""
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
-    write_json_atomic(
-        out,
-        {
-            "commit": commit,
-            "machine": f"{platform.machine()}, {platform.processor() or 'cpu'}",
-            "repeats": repeats,
-            "scenarios": scenarios,
-        },
-    )
+    """``scenarios``' results to ``out`` (JSON, atomically, :func:`stamped`)."""
+    write_benchmark(out, {"repeats": repeats, "scenarios": scenarios})
 
 
 def run(

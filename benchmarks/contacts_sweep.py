@@ -17,8 +17,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
 from locoman.contact.pipeline import contacts_scenario
 from locoman.errors import LocomanError
@@ -101,7 +101,7 @@ def main() -> None:
         "seconds": time.perf_counter() - tic,
         "rows": rows,
     }
-    write_json_atomic(args.out, result)
+    write_benchmark(args.out, result)
     print({k: v for k, v in result.items() if k != "rows"})
 
 

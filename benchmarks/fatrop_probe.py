@@ -28,8 +28,7 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-
-from locoman.artifacts import write_json_atomic
+from common import write_benchmark
 
 OUT = Path(__file__).parent / "results" / "fatrop_probe.json"
 
@@ -139,7 +138,7 @@ def main() -> None:
     for name in SOLVERS:
         result[name] = measure(name, args)
         print(name, result[name]["median_seconds_per_iteration_outside_functions"], flush=True)
-    write_json_atomic(args.out, result)
+    write_benchmark(args.out, result)
 
 
 if __name__ == "__main__":

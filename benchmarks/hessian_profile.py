@@ -33,8 +33,8 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
 from locoman.to.assembly import HESSIANS, Block, BlockNLP, parameter_vector
 from locoman.to.bounds import bounds, initial_guess
@@ -172,7 +172,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/hessian_profile.json"))
     args = parser.parse_args(argv)
     results = [profile(s, args.repeats) for s in args.scenarios]
-    write_json_atomic(
+    write_benchmark(
         args.out,
         {
             "command": "benchmarks/hessian_profile.py",

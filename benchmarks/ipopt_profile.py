@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from locoman.artifacts import write_json_atomic
+from common import write_benchmark
 
 CHILD = """
 import json, os, sys, tempfile
@@ -161,7 +161,7 @@ def main() -> None:
         brief = {k: v for k, v in row.items() if k != "calls"}
         print(json.dumps(brief), flush=True)
     record = {"command": " ".join(sys.argv), "ipopt_options": dict(args.ipopt)}
-    write_json_atomic(args.out, record | {"results": results})
+    write_benchmark(args.out, record | {"results": results})
 
 
 if __name__ == "__main__":

@@ -12,8 +12,9 @@ import platform
 import time
 
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import read_npz, write_json_atomic
+from locoman.artifacts import read_npz
 from locoman.config import load_params
 from locoman.hqp.replay import ReplayTask, replay
 from locoman.kmp.gmr import Reference
@@ -67,7 +68,7 @@ def main() -> None:
         medians.append(np.median(log.hqp_step_s))
         p99s.append(np.percentile(log.hqp_step_s, 99))
         rtf.append(REPLAY_S / log.wall_s)
-    write_json_atomic(
+    write_benchmark(
         args.out,
         {
             "machine": platform.processor() or platform.machine(),

@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
 from locoman.perception.clouds import clouds_scenario
 from locoman.perception.generate import generate_scenario
@@ -62,7 +62,7 @@ def main() -> None:
         "machine": platform.platform(),
         "notes": "generate includes the sim view and ground truth; masks scores grabcut too",
     }
-    write_json_atomic(args.out, result)
+    write_benchmark(args.out, result)
     print(result)
 
 

@@ -20,8 +20,9 @@ import time
 
 import mujoco
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import read_npz, write_json_atomic
+from locoman.artifacts import read_npz
 from locoman.scene.io import load_scene_model
 from locoman.sim import camera
 from locoman.sim.evaluate import scene_qpos
@@ -93,7 +94,7 @@ def main() -> None:
                 }
             )
             print(f"[render_quality] {scenario} {name}: {np.median(seconds[name]):.3f} s/frame")
-    write_json_atomic(
+    write_benchmark(
         args.out,
         {
             "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},

@@ -16,8 +16,9 @@ import time
 from typing import Any
 
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import read_npz, write_json_atomic
+from locoman.artifacts import read_npz
 from locoman.config import load_params
 from locoman.contact.io import CONTACTS
 from locoman.contact.io import subtask_file as contact_file
@@ -81,7 +82,7 @@ def main() -> None:
         "by_scenario": per_scenario,
         "reference": "a mink-based G1 retargeter: 60-70 frames per second (issue 5)",
     }
-    write_json_atomic(args.out, result)
+    write_benchmark(args.out, result)
     print(result)
 
 

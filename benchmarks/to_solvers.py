@@ -35,7 +35,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from locoman.artifacts import write_json_atomic
+from common import write_benchmark
+
 from locoman.config import load_params
 from locoman.sim.pipeline import evaluate_scenario
 from locoman.to.compile import CACHE_ENV
@@ -151,7 +152,7 @@ def main() -> None:
         "repeats": args.repeats,
         "results": results,
     }
-    write_json_atomic(args.out, out)
+    write_benchmark(args.out, out)
 
 
 if __name__ == "__main__":

@@ -26,8 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from common import write_benchmark
 
-from locoman.artifacts import read_json, read_npz, write_json_atomic
+from locoman.artifacts import read_json, read_npz
 from locoman.config import load_params
 from locoman.config.perception import FolderCfg
 from locoman.contact.pipeline import contacts_scenario
@@ -132,7 +133,7 @@ def main() -> None:
         "summary": summary,
         "runs": runs,
     }
-    write_json_atomic(args.out, result)
+    write_benchmark(args.out, result)
     print(result["summary"])
 
 

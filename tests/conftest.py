@@ -18,6 +18,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 REPO = Path(__file__).resolve().parents[1]
+# The benchmark scripts import their shared helpers as `common`, as `python benchmarks/x.py`
+# finds them beside the script; the tests that load a script need the same.
+sys.path.insert(0, str(REPO / "benchmarks"))
 
 # A guard against a hung stage, not a speed check: a loaded 2-core machine must pass.
 CLI_TIMEOUT_S = 3600

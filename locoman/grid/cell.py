@@ -42,8 +42,15 @@ from locoman.artifacts.folder import staging_folder, swap_in
 from locoman.config.schema import RootCfg, ScenarioCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
 from locoman.errors import ArtifactError, ConfigError
+from locoman.grid.provenance import results_settings
 from locoman.grid.runs import find_run
-from locoman.grid.sources import PACKAGE, imported_sources
+from locoman.grid.sources import (
+    CELL_FILE,
+    EVALUATE_MODULES,
+    PACKAGE,
+    SOLVE_MODULES,
+    imported_sources,
+)
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
 from locoman.sim.pipeline import evaluate_scenario
@@ -55,18 +62,6 @@ RECORD_FILE = "cell.json"
 LOG_FILE = "log.txt"
 # The upstream outputs a cell reads, under data/<scenario>/.
 UPSTREAM = ("scene/objects.json", "scene/plan.json", "contacts/subtasks", "retarget/keyframes")
-# The modules a cell's solve runs (their imports are followed, :mod:`locoman.grid.sources`)
-# and its evaluation's; this file's own code decides the cell's scenario and limits. The
-# figures' drawing is in neither: redrawing reuses the cells.
-SOLVE_MODULES = (
-    "locoman.scene.builder",
-    "locoman.scene.io",
-    "locoman.to.pipeline",
-    "locoman.grid.runs",
-    # The CPU kernels the launcher pins in the cells' environment decide the last bits.
-    "locoman.kernels",
-)
-EVALUATE_MODULES = ("locoman.sim.pipeline",)
 # What the record keeps from a solve when only the evaluation runs again.
 SOLVE_NUMBERS = (
     "status",
@@ -164,13 +159,13 @@ def with_time_limit(solve: SolveCfg, limit_s: float) -> SolveCfg:
 
 
 def _solve_sources() -> list[Path]:
-    return sorted({*imported_sources(SOLVE_MODULES), Path(__file__)})
+    return sorted({*imported_sources(SOLVE_MODULES), PACKAGE / CELL_FILE})
 
 
 def solve_key(cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, upstream: Path) -> str:
     """SHA-256 of everything the cell's solve reads: the cell, its parameters (not where
-    the compiled TO is cached), the upstream files, the code the solve imports and this
-    module.
+    the compiled TO is cached nor how much it logs), the upstream files, the code the solve
+    imports and this module.
 
     Raises:
         ArtifactError: An upstream output is missing (run the pipeline up to ``retarget``).
@@ -184,7 +179,7 @@ def solve_key(cell: CellCfg, scenario: ScenarioCfg, solve: SolveCfg, upstream: P
     settings = {
         "cell": dataclasses.asdict(cell),
         "scenario": dataclasses.asdict(scenario),
-        "solve": {k: v for k, v in dataclasses.asdict(solve).items() if k != "cache_dir"},
+        "solve": results_settings(dataclasses.asdict(solve)),
     }
     digest = _digest(settings)
     for path in _files(upstream, UPSTREAM):

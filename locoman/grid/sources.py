@@ -15,15 +15,29 @@ import locoman
 
 PACKAGE = Path(locoman.__file__).parent
 ROOT = PACKAGE.name  # "locoman"
+# The modules a grid cell's solve runs (their imports are followed) and its evaluation's;
+# the cell's own file (not its imports, which reach the evaluation) decides its scenario and
+# limits. The figures' drawing is in neither: redrawing reuses the cells.
+CELL_FILE = "grid/cell.py"
+SOLVE_MODULES = (
+    "locoman.scene.builder",
+    "locoman.scene.io",
+    "locoman.to.pipeline",
+    "locoman.grid.runs",
+    # The CPU kernels the launcher pins in the cells' environment decide the last bits.
+    "locoman.kernels",
+)
+EVALUATE_MODULES = ("locoman.sim.pipeline",)
 
 
-def module_file(name: str) -> Path | None:
+def module_file(name: str, package: Path = PACKAGE) -> Path | None:
     """The source of module ``name`` (``locoman.a.b``): ``a/b.py`` or ``a/b/__init__.py``
-    under the package; None for a name that is no module of it (a class, a function)."""
+    under ``package`` (this one's folder, or another checkout's); None for a name that is no
+    module of it (a class, a function)."""
     parts = name.split(".")
     if parts[0] != ROOT:
         return None
-    base = PACKAGE.joinpath(*parts[1:])
+    base = Path(package).joinpath(*parts[1:])
     for path in (base.with_suffix(".py"), base / "__init__.py"):
         if path.is_file():
             return path
@@ -47,9 +61,9 @@ def imports_of(source: str, package: str) -> set[str]:
     return {n for n in names if n.split(".")[0] == ROOT}
 
 
-def _imported(path: Path) -> set[str]:
-    package = ".".join([ROOT, *path.relative_to(PACKAGE).parent.parts])
-    return imports_of(path.read_text(), package)
+def _imported(path: Path, package: Path) -> set[str]:
+    name = ".".join([ROOT, *path.relative_to(package).parent.parts])
+    return imports_of(path.read_text(), name)
 
 
 def _with_parents(name: str) -> list[str]:
@@ -58,9 +72,10 @@ def _with_parents(name: str) -> list[str]:
     return [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
 
 
-def imported_sources(modules: Iterable[str]) -> list[Path]:
+def imported_sources(modules: Iterable[str], package: Path = PACKAGE) -> list[Path]:
     """The sorted source files of ``modules`` and of every locoman module they import,
-    transitively, their packages' ``__init__.py`` included.
+    transitively, their packages' ``__init__.py`` included, read from ``package`` (this
+    package's folder, or another checkout's ``locoman/``).
 
     Raises:
         ModuleNotFoundError: A name in ``modules`` is no locoman module.
@@ -68,14 +83,14 @@ def imported_sources(modules: Iterable[str]) -> list[Path]:
     seen: set[Path] = set()
     stack = []
     for name in modules:
-        if module_file(name) is None:
-            raise ModuleNotFoundError(f"{name!r} is no module of {ROOT} (under {PACKAGE})")
+        if module_file(name, package) is None:
+            raise ModuleNotFoundError(f"{name!r} is no module of {ROOT} (under {package})")
         stack.append(name)
     while stack:
         for parent in _with_parents(stack.pop()):
-            path = module_file(parent)
+            path = module_file(parent, package)
             if path is None or path in seen:
                 continue
             seen.add(path)
-            stack.extend(_imported(path))
+            stack.extend(_imported(path, package))
     return sorted(seen)
