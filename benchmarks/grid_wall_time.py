@@ -5,7 +5,7 @@ Usage: python benchmarks/grid_wall_time.py <scenario> <figure> <out.json> [--dat
 
 A panel's wall time [s] is how long at least one of its cells was running: the union of the
 cells' intervals [end - wall_time_s, end], with ``end`` the time ``cell.json`` was written.
-A grid that ran across sessions, stopped and relaunched, so counts the time it computed and
+A grid that was stopped and relaunched so counts the time it computed and
 not the gaps between launches. Panels with fewer records than runs are marked
 ``"whole": false``. Cells that errored count too: they took the time. A cell last evaluated
 again on its kept solve counts that evaluation (``evaluate_wall_time_s``): its solve ran in

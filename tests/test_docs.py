@@ -64,3 +64,34 @@ def test_the_citation_file_cites_the_software_and_both_papers(repo):
         assert first_line.strip() in titles
     assert all(ref["authors"] for ref in cff["references"])
     assert (repo / "LICENSE").read_text().startswith("MIT License")
+
+
+DOCS_BUDGET_BYTES = 80_000
+PAGE_BUDGET_BYTES = 20_000
+
+
+def test_the_docs_are_short_enough_to_read(repo):
+    """The docs describe the product as it is: under 80 KB in all, no page over 20 KB."""
+    sizes = {p.name: len(p.read_bytes()) for p in (repo / "docs").glob("*.md")}
+    assert sum(sizes.values()) < DOCS_BUDGET_BYTES, sizes
+    assert not {n: s for n, s in sizes.items() if s > PAGE_BUDGET_BYTES}
+
+
+def _text_files(repo):
+    yield repo / "README.md"
+    yield repo / "CHANGELOG.md"
+    for folder in ("docs", "benchmarks"):
+        for path in sorted((repo / folder).rglob("*")):
+            if path.is_file() and path.suffix in {".md", ".py", ".json", ".csv", ".txt"}:
+                yield path
+
+
+def test_no_page_tells_the_story_of_its_making(repo):
+    """History is CHANGELOG.md and git: no file of the docs, the README, the changelog or
+    the benchmarks speaks of the sessions the work was done in."""
+    found = [
+        str(p.relative_to(repo))
+        for p in _text_files(repo)
+        if re.search(r"\bsessions?\b", p.read_text(errors="replace"), re.IGNORECASE)
+    ]
+    assert not found, found
