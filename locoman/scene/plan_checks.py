@@ -204,6 +204,10 @@ def check_layout(
     resolve (reported by the scenario's own check) and an object of an unknown kind
     (reported here once) are left out.
     """
+    numbers = [v for o in objects.values() for v in (*o.pos, *o.extents_m, o.yaw)]
+    numbers += [v for sub in plan if sub.target for v in (*sub.target.pos, sub.target.yaw)]
+    if not np.all(np.isfinite(numbers)):
+        return []  # the configuration's own check names the number that is not finite
     errors: list[tuple[str, str]] = []
     geometry: dict[str, ObjectGeometry] = {}
     poses: dict[str, Pose] = {}
