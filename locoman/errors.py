@@ -33,3 +33,7 @@ class InputError(LocomanError):
 
 class SolverError(LocomanError):
     """A numerical solve failed (a QP reported infeasibility, a factorisation broke down)."""
+
+
+class SetupError(LocomanError):
+    """The Python environment lacks what the project needs (a package it depends on)."""

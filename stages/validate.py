@@ -20,11 +20,15 @@ from pathlib import Path
 
 from locoman.artifacts import write_json_atomic
 from locoman.config import load_params
+from locoman.config.compose import check_scenario_files
+from locoman.config.environment import check_environment
 from locoman.stage import StageOutputs, run_stage
 
 
 def main(outputs: StageOutputs) -> Path:
-    load_params()  # raises ConfigError naming the key
+    check_environment(Path("requirements.lock"))  # the packages this Python has
+    cfg = load_params()  # raises ConfigError naming the key
+    check_scenario_files(cfg)  # a file of conf/scenario/ that params.yaml lacks
     out = outputs.folder("params", "validate")
     write_json_atomic(out / "validated.json", {"params.yaml": "valid"})
     return out

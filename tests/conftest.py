@@ -65,10 +65,12 @@ def tiny_scene(params, tmp_path_factory) -> Path:
     return out
 
 
-def _run_cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+def _run_cli(
+    args: list[str], cwd: Path, extra_env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     from locoman.to.compile import CACHE_ENV
 
-    env = dict(os.environ)
+    env = dict(os.environ) | dict(extra_env or {})
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
     # The copy's TO compiles into (and reuses) the checkout's cache: a later run with the
     # same compiler and flags builds nothing.
@@ -80,8 +82,8 @@ def _run_cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
 
 @pytest.fixture(scope="session")
 def run_cli():
-    """``run_cli(args, cwd)``: a command in a checkout copy, this interpreter's environment
-    first on PATH, its output captured."""
+    """``run_cli(args, cwd[, extra_env])``: a command in a checkout copy, this interpreter's
+    environment first on PATH, its output captured."""
     return _run_cli
 
 

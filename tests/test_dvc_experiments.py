@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -105,3 +106,33 @@ def test_a_misspelt_key_fails_the_experiment_naming_it(workdir, run_cli):
     assert "Running stage 'validate'" in run.stdout, run.stdout
     assert "Running stage 'scene@tiny'" not in run.stdout, run.stdout
     assert run_cli([*git, "checkout", "--", "params.yaml"], workdir).returncode == 0
+
+
+def test_a_scenario_added_as_one_file_runs_and_a_wrong_python_removes_nothing(workdir, run_cli):
+    """A scenario is one file of conf/scenario/: `make params` lists it, `dvc repro` runs
+    its scene. A Python without the project's packages stops `validate`, which runs first
+    on every `dvc repro`, before DVC removes the outputs of the stage it was asked for."""
+    import yaml
+
+    dvc = [sys.executable, "-m", "dvc"]
+    task = yaml.safe_load((workdir / "conf" / "scenario" / "tiny.yaml").read_text())
+    task["description"] = "a user's own task"
+    path = workdir / "conf" / "scenario" / "my_task.yaml"
+    path.write_text(yaml.safe_dump(task))
+    unlisted = run_cli([*dvc, "repro", "validate"], workdir)
+    assert unlisted.returncode != 0
+    assert "['my_task'], which params.yaml lacks: run `make params`" in unlisted.stderr
+    assert run_cli([sys.executable, "-m", "locoman.config.compose"], workdir).returncode == 0
+    ran = run_cli([*dvc, "repro", "scene@my_task"], workdir)
+    assert ran.returncode == 0, ran.stdout + ran.stderr
+    scene = workdir / "data" / "my_task" / "scene"
+    built = {p.name: p.read_bytes() for p in scene.iterdir() if p.is_file()}
+    assert "overview.png" in built and "plan.json" in built
+    task["objects"]["box"]["rgba"] = [0.2, 0.6, 0.3, 1.0]  # the scene must run again
+    path.write_text(yaml.safe_dump(task))
+    assert run_cli([sys.executable, "-m", "locoman.config.compose"], workdir).returncode == 0
+    bare = Path(sys.base_prefix) / "bin" / "python3"  # the interpreter without the venv
+    wrong = run_cli([*dvc, "repro", "scene@my_task"], workdir, {"LOCOMAN_PYTHON": str(bare)})
+    assert wrong.returncode != 0
+    assert "cannot import locoman and its dependencies" in wrong.stdout + wrong.stderr
+    assert {p.name: p.read_bytes() for p in scene.iterdir() if p.is_file()} == built

@@ -28,7 +28,7 @@ from locoman.perception.demonstrator import CROUCH, KEYPOINTS
 from locoman.perception.generate import generate_scenario
 from locoman.perception.io import MASKS, POSE, PROMPTS, PROMPTS_FILE, SUBTASKS_DIR, subtask_dir
 from locoman.perception.masks import masks_scenario
-from locoman.perception.user_images import USER_INPUT, USER_INPUT_FILE
+from locoman.perception.user_images import USER_INPUT, USER_INPUT_FILE, read_user_image
 from locoman.scene.io import load_objects
 
 FOLDER = Path(__file__).resolve().parents[1] / "data" / "tiny" / "user_images"
@@ -270,3 +270,59 @@ def test_the_fit_needs_enough_keypoints(human_model):
     px[:5] = 100.0
     with pytest.raises(InputError, match="at least 6 2D keypoints, found 5"):
         pose_fit.fit_pose(human_model, px, np.ones(len(px)), camera.heuristic_intrinsics(64, 64))
+
+
+def _formats(bgr: np.ndarray) -> dict[str, np.ndarray]:
+    grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    return {
+        "grey": grey,
+        "grey, 16-bit": grey.astype(np.uint16) * 257,
+        "RGBA": cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA),
+        "RGB, 16-bit": bgr.astype(np.uint16) * 257,
+    }
+
+
+@pytest.mark.parametrize("kind", ["grey", "grey, 16-bit", "RGBA", "RGB, 16-bit"])
+def test_a_users_image_of_another_format_is_read_as_8_bit_rgb(tmp_path, kind):
+    folder = _copy(tmp_path)
+    bgr = cv2.imread(str(folder / "subtask_0.png"), cv2.IMREAD_COLOR)
+    image = _formats(bgr)[kind]
+    assert cv2.imwrite(str(folder / "subtask_0.png"), image)
+    rgb, arrays, _ = read_user_image(folder, 0)
+    assert rgb.dtype == np.uint8 and rgb.shape == (SIZE, SIZE, 3)
+    expected = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    if kind.startswith("grey"):
+        expected = np.repeat(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)[..., None], 3, axis=2)
+    np.testing.assert_array_equal(rgb, expected)
+    assert arrays["depth_given"]
+
+
+def test_a_grey_16_bit_image_runs_through_masks(tiny_scene, tmp_path):
+    """A photograph saved as 16-bit grey reaches masks as any image does."""
+    folder = _copy(tmp_path)
+    for i in range(3):
+        bgr = cv2.imread(str(folder / f"subtask_{i}.png"), cv2.IMREAD_COLOR)
+        cv2.imwrite(str(folder / f"subtask_{i}.png"), _formats(bgr)["grey, 16-bit"])
+    out = tmp_path / "out"
+    generate_scenario("tiny", tiny_scene, out / "generate", _folder_cfg(folder), 0)
+    masks = masks_scenario("tiny", out / "generate", out / "masks", FOLDER_MASKS, 0)
+    assert masks is not None and (out / "masks" / "metrics.json").is_file()
+
+
+@pytest.mark.parametrize(
+    ("image", "message"),
+    [
+        (np.zeros((256, 256), np.float32), r"float32 pixels|not an image OpenCV can read"),
+        (np.zeros((5000, 80, 3), np.uint8), r"80 x 5000 px; each side must be 64-4096 px: scale"),
+    ],
+)
+def test_an_image_it_cannot_take_says_what_to_do(tiny_scene, tmp_path, image, message):
+    folder = _copy(tmp_path)
+    ext = ".png" if image.dtype == np.uint8 else ".tiff"
+    (folder / "subtask_0.png").unlink()
+    path = folder / f"subtask_0{ext}"
+    cv2.imwrite(str(path), image)
+    if ext != ".png":  # a TIFF under a PNG's name: OpenCV reads its content, not its name
+        path.rename(folder / "subtask_0.png")
+    with pytest.raises(InputError, match=message):
+        generate_scenario("tiny", tiny_scene, tmp_path / "out", _folder_cfg(folder), 0)

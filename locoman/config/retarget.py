@@ -43,6 +43,8 @@ class RetargetCfg:
         collision_margin_m: [m].
         collision_trigger_m: Pairs closer than this enter the QP [m].
         reach_tolerance_m: A contact missed by more is reported as unreachable [m].
+        max_contact_miss_m: A contact missed by more stops the stage: the TO would start from
+            a keyframe that does not touch what its subtask acts on [m].
         start_knees_rad: Knee angles of the standing postures the IK starts from, in turn,
             until one meets every contact [rad].
         iterations: Most IK steps per start.
@@ -69,6 +71,7 @@ class RetargetCfg:
     collision_margin_m: float = 0.005
     collision_trigger_m: float = 0.03
     reach_tolerance_m: float = 0.005
+    max_contact_miss_m: float = 0.05
     start_knees_rad: list[float] = field(default_factory=lambda: [0.42, 1.2])
     iterations: int = 500
     step_s: float = 0.05
@@ -98,6 +101,8 @@ class RetargetCfg:
             errors.append(("fallback_collision_margin_m", "must be in [0, collision_trigger_m) m"))
         if min(weights) < 0.0:
             errors.append(("hand_weight", "task weights and the regularization must be >= 0"))
+        if self.max_contact_miss_m < self.reach_tolerance_m:
+            errors.append(("max_contact_miss_m", "must be >= reach_tolerance_m [m]"))
         if min(self.com_margin_m, self.collision_margin_m, self.reach_tolerance_m) < 0.0:
             errors.append(("com_margin_m", "margins and tolerances must be >= 0 m"))
         if self.collision_trigger_m <= self.collision_margin_m:

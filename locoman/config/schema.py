@@ -18,6 +18,8 @@ from locoman.config.perception import PerceptionCfg
 from locoman.config.retarget import RetargetCfg
 from locoman.config.skill_transfer import DemosCfg, HqpCfg, KmpCfg
 from locoman.config.to import EvaluateCfg, SolveCfg
+from locoman.scene.actions import ACTIONS, resolve_action
+from locoman.scene.plan_checks import check_layout
 from locoman.stage import SCENARIO_NAME_RULE, valid_scenario_name
 
 
@@ -77,17 +79,32 @@ class SubtaskCfg:
     """One step of the high-level plan, in the paper's prompt style.
 
     Attributes:
-        prompt: e.g. "pick up the box from the floor"; its first word is the predicate.
+        prompt: e.g. "pick up the box from the floor", as a person would say it; the image
+            of the subtask shows it.
         object: Name of the object the subtask acts on.
         contacts: End effectors in contact with the object during the subtask
             (``left_hand``, ``right_hand``, ``left_foot``, ``right_foot``, ``gripper``).
         target: Placement of ``object`` at the end of the subtask, if it moves it.
+        action: A humanoid subtask's contact schedule, one of
+            :data:`locoman.scene.actions.ACTIONS` (``walk``, ``pick``, ``grab``, ``place``,
+            ``push``, ``step``); null: the prompt's verb decides
+            (:data:`locoman.scene.actions.SYNONYMS`: "carry" and "put" are ``place``).
     """
 
     prompt: str = MISSING
     object: str = MISSING
     contacts: list[str] = field(default_factory=list)
     target: PlacementCfg | None = None
+    action: str | None = None
+
+    @property
+    def resolved_action(self) -> str:
+        """The subtask's action (:func:`locoman.scene.actions.resolve_action`).
+
+        Raises:
+            ValueError: It names none.
+        """
+        return resolve_action(self.prompt, self.action)
 
     def check(self) -> list[tuple[str, str]]:
         allowed = {"left_hand", "right_hand", "left_foot", "right_foot", "gripper"}
@@ -124,6 +141,8 @@ class ScenarioCfg:
         arm_start: Mobile manipulator only: initial end-effector position [m] (world).
         objects: Objects and environment pieces by name. ``floor`` is always present.
         plan: Ordered subtasks.
+        check_reach: Check, before perception, that the G1's hands can reach what each
+            subtask takes or sets down (a heuristic: :mod:`locoman.scene.plan_checks`).
     """
 
     robot: str = MISSING
@@ -132,6 +151,7 @@ class ScenarioCfg:
     arm_start: list[float] | None = None
     objects: dict[str, ObjectCfg] = field(default_factory=dict)
     plan: list[SubtaskCfg] = field(default_factory=list)
+    check_reach: bool = True
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
@@ -148,6 +168,55 @@ class ScenarioCfg:
             self.arm_start is None or len(self.arm_start) != 3
         ):
             errors.append(("arm_start", "the mobile manipulator needs (x, y, z) [m]"))
+        if self.robot == "g1":
+            errors += self._plan_errors()
+        return errors
+
+    def _plan_errors(self) -> list[tuple[str, str]]:
+        """A humanoid plan: each subtask's action, the end effectors it uses, its target,
+        and that what it sets down is in the hands."""
+        errors: list[tuple[str, str]] = []
+        held: set[str] = set()
+        for i, sub in enumerate(self.plan):
+            try:
+                action = ACTIONS[sub.resolved_action]
+            except ValueError as exc:
+                key = "action" if sub.action is not None else "prompt"
+                errors.append((f"plan[{i}].{key}", f"{sub.prompt!r}: {exc}"))
+                continue
+            unused = sorted(set(sub.contacts) - action.contacts)
+            if unused:
+                errors.append(
+                    (
+                        f"plan[{i}].contacts",
+                        f"{action.name!r} does not use {unused}: it puts "
+                        f"{sorted(action.contacts)} on its object ({action.schedule})",
+                    )
+                )
+            if action.moves_object and sub.target is None:
+                errors.append(
+                    (f"plan[{i}].target", f"{action.name!r} needs a target for {sub.object!r}")
+                )
+            elif not action.moves_object and sub.target is not None:
+                errors.append(
+                    (
+                        f"plan[{i}].target",
+                        f"{action.name!r} moves nothing to a target; only "
+                        f"{sorted(a for a, x in ACTIONS.items() if x.moves_object)} do",
+                    )
+                )
+            if action.needs_held and sub.object not in held:
+                errors.append(
+                    (
+                        f"plan[{i}]",
+                        f"{action.name!r} sets down {sub.object!r}, which the robot does not "
+                        "hold: an earlier subtask must pick or grab it",
+                    )
+                )
+            if action.name in ("pick", "grab"):
+                held.add(sub.object)
+            elif action.name == "place":
+                held.discard(sub.object)
         return errors
 
 
@@ -181,17 +250,26 @@ class SceneCheckCfg:
         foot_ground_tol: Largest gap or penetration between a G1 sole and the floor [m].
         render_width: Overview image width [px].
         render_height: Overview image height [px].
+        rest_tol_m: An object rests on the floor or on another object's top when its bottom
+            is within this of it [m] (:mod:`locoman.scene.plan_checks`).
+        hand_height_m: The heights [m] of an object's hand faces above the surface the G1
+            stands on that its hands reach, [low, high]: below 0.14 m the G1 bends past 90
+            deg (S1's 0.2 m box held near its top); 1.45 m is S1's basket from its box.
     """
 
     penetration_tol: float = 1e-3
     foot_ground_tol: float = 2e-3
     render_width: int = 640
     render_height: int = 480
+    rest_tol_m: float = 5e-3
+    hand_height_m: list[float] = field(default_factory=lambda: [0.14, 1.45])
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
-        if self.penetration_tol < 0.0 or self.foot_ground_tol < 0.0:
+        if self.penetration_tol < 0.0 or self.foot_ground_tol < 0.0 or self.rest_tol_m < 0.0:
             errors.append(("penetration_tol", "tolerances must be >= 0 m"))
+        if len(self.hand_height_m) != 2 or not 0.0 <= self.hand_height_m[0] < self.hand_height_m[1]:
+            errors.append(("hand_height_m", "needs [low, high] with 0 <= low < high [m]"))
         if not (16 <= self.render_width <= 4096 and 16 <= self.render_height <= 4096):
             errors.append(("render_width", "image size must be within [16, 4096] px"))
         return errors
@@ -204,6 +282,9 @@ class RootCfg:
     seed: int = 0
     scenario: ScenarioKnobsCfg = field(default_factory=ScenarioKnobsCfg)
     scenarios: dict[str, ScenarioCfg] = field(default_factory=dict)
+    # The G1 scenarios, listed by `make params` (locoman.config.compose); the perception and
+    # solve stages' lists default to it.
+    humanoid_scenarios: list[str] = field(default_factory=list)
     scene: SceneCheckCfg = field(default_factory=SceneCheckCfg)
     demos: DemosCfg = field(default_factory=DemosCfg)
     kmp: KmpCfg = field(default_factory=KmpCfg)
@@ -234,6 +315,30 @@ class RootCfg:
                             f"(demos.duration_s = {self.demos.duration_s} s)",
                         )
                     )
+        for name, scenario in self.scenarios.items():
+            if self.scene.check() or scenario.check():
+                continue  # the layout needs a valid scenario and tolerances
+            errors += [
+                (f"scenarios.{name}.{key}", msg)
+                for key, msg in check_layout(
+                    scenario.objects,
+                    scenario.plan,
+                    scenario.robot,
+                    self.scene.rest_tol_m,
+                    self.scene.penetration_tol,
+                    self.scene.hand_height_m,
+                    scenario.check_reach,
+                )
+            ]
+        g1 = [n for n, s in self.scenarios.items() if s.robot == "g1"]
+        if sorted(self.humanoid_scenarios) != sorted(g1):
+            errors.append(
+                (
+                    "humanoid_scenarios",
+                    f"lists {self.humanoid_scenarios}, the G1 scenarios are {g1}: "
+                    "run `make params`",
+                )
+            )
         for name in self.perception.scenarios:
             if name not in self.scenarios or self.scenarios[name].robot != "g1":
                 errors.append(("perception.scenarios", f"{name!r} is not a G1 scenario"))

@@ -281,7 +281,7 @@ def _solve(
         "solver_status": traj.status,
         "iterations": traj.iterations,
         "solve_time_s": traj.solve_time_s,
-        # Rounds of found pairs that added any (issue 48), and how many they added.
+        # Rounds of found pairs that added any, and how many they added.
         "collision_rounds": sum(r["pairs_added"] > 0 for r in solved["collision_rounds"]),
         "pairs_found": solved["pairs_found"],
         # Solves started again from the guess with the pairs found (CollisionCfg.restarts).

@@ -5,7 +5,8 @@ photographed. ``perception.generate.folder.images_dir`` (relative to the reposit
 holds, per subtask ``i`` of the
 scenario's plan (``data/<scenario>/scene/plan.json``, indices from 0)::
 
-    subtask_<i>.png | subtask_<i>.jpg   R_g: RGB (an alpha channel is dropped), 64-4096 px a side
+    subtask_<i>.png | subtask_<i>.jpg   R_g: RGB, RGBA or grey, 8 or 16 bits a channel (taken
+                                        as 8-bit RGB: alpha dropped), 64-4096 px a side
     subtask_<i>.json                    optional annotations, any of:
         {"object_box_px": [u0, v0, u1, v1],            the object's box, pixel indices
          "keypoints_px": {"left_hand": [u, v], ...}}   2D keypoints, any of KEYPOINTS
@@ -112,14 +113,12 @@ def read_user_image(folder: Path, index: int) -> tuple[np.ndarray, dict[str, np.
         p for p in (folder / f"subtask_{index}{e}" for e in (".png", ".jpg")) if p.is_file()
     )
     digest = hashlib.sha256(image_path.read_bytes())
-    raw = cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED)
-    if raw is None or raw.dtype != np.uint8 or raw.ndim != 3 or raw.shape[2] not in (3, 4):
-        raise InputError(f"{image_path}: not an 8-bit RGB or RGBA image")
-    rgb = np.ascontiguousarray(cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2RGB))
+    rgb = _as_rgb8(image_path, cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED))
     h, w = rgb.shape[:2]
     if not (MIN_SIDE_PX <= h <= MAX_SIDE_PX and MIN_SIDE_PX <= w <= MAX_SIDE_PX):
         raise InputError(
-            f"{image_path}: {w} x {h} px; each side must be {MIN_SIDE_PX}-{MAX_SIDE_PX}"
+            f"{image_path}: {w} x {h} px; each side must be {MIN_SIDE_PX}-{MAX_SIDE_PX} px: "
+            "scale the image (and the pixels of its annotations and depth) to fit"
         )
     names = list(KEYPOINTS)
     box, keypoints = np.full(4, np.nan), np.full((len(names), 2), np.nan)
@@ -140,6 +139,27 @@ def read_user_image(folder: Path, index: int) -> tuple[np.ndarray, dict[str, np.
         "depth_given": np.array(depth_path.is_file()),
     }
     return rgb, arrays, digest.hexdigest()
+
+
+def _as_rgb8(path: Path, raw: np.ndarray | None) -> np.ndarray:
+    """An image as read by OpenCV (grey, BGR or BGRA, which is how it reads a grey PNG with
+    alpha; 8 or 16 bits) as 8-bit RGB (H, W, 3): grey spread over the channels, alpha
+    dropped, 16 bits to their high byte.
+
+    Raises:
+        InputError: It is no image OpenCV reads, or of a kind none of these is.
+    """
+    if raw is None:
+        raise InputError(f"{path}: not an image OpenCV can read (a PNG or JPEG is)")
+    if raw.dtype == np.uint16:
+        raw = (raw >> 8).astype(np.uint8)
+    if raw.dtype != np.uint8:
+        raise InputError(f"{path}: {raw.dtype} pixels; save it with 8 or 16 bits a channel")
+    if raw.ndim == 2:
+        return np.ascontiguousarray(np.repeat(raw[..., None], 3, axis=2))
+    if raw.ndim == 3 and raw.shape[2] in (3, 4):
+        return np.ascontiguousarray(cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2RGB))
+    raise InputError(f"{path}: an image of shape {raw.shape}; save it as RGB, RGBA or grey")
 
 
 def _annotations(path: Path, names: list[str], w: int, h: int) -> tuple[np.ndarray, np.ndarray]:

@@ -21,6 +21,7 @@ from locoman.config.retarget import RetargetCfg
 from locoman.contact.io import CONTACTS
 from locoman.contact.io import subtask_file as contact_file
 from locoman.contact.scoring import true_contacts
+from locoman.errors import SceneError
 from locoman.perception.io import POSE, PROMPTS, PROMPTS_FILE, read_png
 from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
 from locoman.perception.masks import load_truth, median_or_none
@@ -167,7 +168,31 @@ def retarget_scenario(
             for n in names
         },
     )
-    return _aggregate(rows, seconds, out_dir)
+    metrics = _aggregate(rows, seconds, out_dir)
+    check_reached(rows, cfg.max_contact_miss_m)
+    return metrics
+
+
+def check_reached(rows: list[dict[str, Any]], max_miss_m: float) -> None:
+    """Every contact the keyframes leave unreached is missed by at most ``max_miss_m``.
+
+    Raises:
+        SceneError: Naming each subtask, end effector and miss beyond it: the TO would start
+            from a keyframe that does not touch what the subtask acts on.
+    """
+    misses = [
+        f"subtask {row['index']} ({row['prompt']!r}): {effector} by {miss:.3f} m"
+        for row in rows
+        for effector, miss in row["unreachable"].items()
+        if miss > max_miss_m
+    ]
+    if misses:
+        raise SceneError(
+            f"the G1 cannot reach its contacts (the keyframe IK leans as far as it can "
+            f"without lifting the feet): {'; '.join(misses)}, beyond "
+            f"retarget.max_contact_miss_m ({max_miss_m} m). Bring the object or its target "
+            "within reach (docs/scenarios.md: what the G1 reaches)"
+        )
 
 
 def _check(

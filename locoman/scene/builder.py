@@ -162,7 +162,8 @@ def _plan(cfg: ScenarioCfg) -> dict[str, Any]:
         entry: dict[str, Any] = {
             "index": i,
             "prompt": sub.prompt,
-            "predicate": sub.prompt.split()[0],
+            # The action (walk, pick, ...): said, or the prompt's verb through its synonyms.
+            "predicate": sub.resolved_action if cfg.robot == "g1" else sub.prompt.split()[0],
             "object": sub.object,
             "contacts": list(sub.contacts),
             "target": None,

@@ -142,7 +142,8 @@ def motion_frames(
     with mujoco.Renderer(model, height=height, width=width) as renderer:
         for t in np.arange(0.0, time[-1] + 0.5 / fps, 1.0 / fps):
             q = np.array([np.interp(t, time, c) for c in traj["q"].T])
-            o = np.apply_along_axis(lambda c, t=t: np.interp(t, time, c), 0, traj["object_q"])
+            objects = traj["object_q"].reshape(len(time), -1)  # (N, M * 6), M may be 0
+            o = np.array([np.interp(t, time, c) for c in objects.T]).reshape(-1, 6)
             k = min(int(np.searchsorted(time, t, side="right")), len(time) - 1)
             label = f"t={t:.2f}s {traj['phase'][k]}"
             yield _render(renderer, model, data, q, names, o, label, bearing)

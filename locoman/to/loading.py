@@ -11,10 +11,13 @@ import numpy as np
 from locoman.artifacts import read_npz
 from locoman.contact.io import CONTACT_FIELDS, CONTACTS
 from locoman.contact.io import subtask_file as contact_file
+from locoman.contact.surface import closest_on_primitive
 from locoman.errors import ArtifactError
 from locoman.retarget.io import KEYFRAME, keyframe_file
+from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_plan, load_scene_model, load_state
+from locoman.scene.objects import Primitive
 from locoman.scene.plan_state import AS_BUILT, REST_TOL_M, top_face, world_pose
 from locoman.scene.rotations import matrix_to_rpy, quat_wxyz_to_matrix
 from locoman.to.collision import obstacles_from_objects
@@ -110,6 +113,42 @@ def _hand_contacts(
     return contacts[points_field][rows], frames
 
 
+def palm_reach() -> float:
+    """How far a G1 palm reaches from its contact point along its capsule [m]: its half
+    length and its radius."""
+    frames = contact_frames()
+    return float(frames.palm_half_length + frames.palm_radius)
+
+
+def palms_on_the_bar(
+    points: np.ndarray, frames: np.ndarray, spec: dict, reach: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The hands' contacts gripping a handle bar (a trolley's), ``points`` (2, 3) [m] and
+    ``frames`` (2, 3, 3) in the object's frame, moved along the bar until each palm,
+    ``reach`` [m] either side of its contact, clears the posts that hold the bar's ends: a
+    moved contact lands on the bar's surface again, its frame that surface's. Other
+    objects' contacts, and those already clear, stay as they are.
+
+    The hands grip where the person's did, near the ends of a bar as wide as a person's
+    shoulders: a G1 palm there overlapped the post (58 mm, a failed scheduled-contact check),
+    which no term keeps it out of, its grip being fixed to the bar.
+    """
+    prims = {p["name"]: p for p in spec["primitives"]}
+    if "handle" not in prims or not {"post_left", "post_right"} <= prims.keys():
+        return points, frames
+    bar = prims["handle"]
+    handle = Primitive(bar["shape"], tuple(bar["size"]), tuple(bar["pos"]), "handle")
+    inner = min(abs(prims[p]["pos"][1]) - prims[p]["size"][1] for p in ("post_left", "post_right"))
+    bound = max(inner - reach, 0.0)
+    points, frames = np.array(points, dtype=float), np.array(frames, dtype=float)
+    for i in np.flatnonzero(np.abs(points[:, 1]) > bound):
+        moved = points[i].copy()
+        moved[1] = np.clip(moved[1], -bound, bound)
+        q, n = closest_on_primitive(moved[None], handle)
+        points[i], frames[i] = q[0], contact_frame(n[0])
+    return points, frames
+
+
 def _feet_on_object(contacts_dir: Path, subtask: int, contacts: str) -> np.ndarray | None:
     """(2, 2) x, y [m] of the left and right foot contacts of one subtask, when ``contacts``
     is the naive baseline and contact transfer put the feet on the object (S1's step);
@@ -147,8 +186,6 @@ def load_inputs(
     plan = load_plan(scene_dir)
     specs = load_objects(scene_dir)
     names = object_order(plan, specs)
-    if not names:
-        raise ArtifactError("the scene has no movable object for the TO")
     models = tuple(ObjectModel.from_spec(name, specs[name]) for name in names)
     scene_poses = {name: world_pose(specs, AS_BUILT, name) for name in names}
     starts = np.array([object_pose(scene_poses[name]) for name in names])
@@ -162,22 +199,24 @@ def load_inputs(
         movable = [str(m) for m in kf["movable_objects"]]
         poses = dict(zip(movable, kf["T_world_movable"], strict=True))
         j = names.index(sub["object"]) if sub["object"] in names else None
-        if j is None and sub["predicate"] != "walk":
+        if j is None and sub["predicate"] not in ("walk", "step"):
             raise ArtifactError(
                 f"subtask {sub['index']} ({sub['predicate']}) acts on {sub['object']!r}, which "
-                "is fixed in the scene: only a walk may name a fixed object"
+                "is fixed in the scene: only a walk or a step may name a fixed object"
             )
         goal, support, height, step_height = None, None, 0.0, 0.0
         if sub["target"] is not None:
             goal = np.r_[sub["target"]["pos_m"][:2], sub["target"]["yaw_rad"]]
         if sub["predicate"] == "place":
             support, height = support_at(specs, poses, names, sub["object"])
-        if sub["predicate"] == "step":
-            step_height = step_top(specs, poses, sub["object"])
+        if sub["predicate"] == "step":  # onto a movable object where the plan left it
+            at = poses.get(sub["object"], world_pose(specs, AS_BUILT, sub["object"]))
+            step_height = step_top(specs, {sub["object"]: at}, sub["object"])
         hands = any("hand" in c for c in sub["contacts"])
         if j is not None and sub["object"] not in touched and hands:
             touched.add(sub["object"])
-            points[j], frames[j] = _hand_contacts(contacts_dir, sub["index"], fields)
+            hand = _hand_contacts(contacts_dir, sub["index"], fields)
+            points[j], frames[j] = palms_on_the_bar(*hand, specs[sub["object"]], palm_reach())
         feet = None
         if any("foot" in c for c in sub["contacts"]):
             feet = _feet_on_object(contacts_dir, sub["index"], contacts)

@@ -65,7 +65,9 @@ def node_parameters(
                 P[limb(par["foot_surface_z"], i), k] = step.step_height
     modes = node_modes(inputs, schedule)
     first = next((j for m in modes for j in m.hands if j is not None), 0)
-    for k, mode in enumerate(modes):
+    # A free hand's numbers are its first object's (they enter no term while it is free);
+    # a scene with no movable object (a step onto a fixed platform) leaves them zero.
+    for k, mode in enumerate(modes if len(inputs.objects) else ()):
         for i, j in enumerate(mode.hands):
             j = first if j is None else j
             P[limb(par["hand_points"], i), k] = inputs.hand_points[j, i]

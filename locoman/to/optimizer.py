@@ -331,6 +331,8 @@ class TrajectoryOptimizer:
             return Z[:, layout.variables[name]]
 
         def per_object(quantity: str) -> np.ndarray:
+            if not layout.n_objects:  # a scene of fixed objects alone: (n, 0, its size)
+                return np.zeros((n, 0, 1 if quantity == "support_slack" else 6))
             return np.stack(
                 [Z[:, layout.object_variables(j, quantity)] for j in range(layout.n_objects)],
                 axis=1,
@@ -370,13 +372,16 @@ class TrajectoryOptimizer:
             hand_object=np.array(
                 [[-1 if j is None else j for j in m.hands] for m in self.modes], dtype=int
             ),
-            object_active=np.array([[o.active for o in row] for row in objects]),
+            object_active=np.array(
+                [[o.active for o in row] for row in objects], dtype=bool
+            ).reshape(n, -1),
             support_kind=np.array(
-                [[o.support.name if o.support else "none" for o in row] for row in objects]
-            ),
+                [[o.support.name if o.support else "none" for o in row] for row in objects],
+                dtype=str,
+            ).reshape(n, -1),
             support_base=np.array(
                 [[_base_index(o.support) for o in row] for row in objects], dtype=int
-            ),
+            ).reshape(n, -1),
             phase=np.array(phases),
             subtask=np.array([self.schedule.subtask_of(k) for k in range(n)]),
             hand_points=self.inputs.hand_points.copy(),

@@ -13,7 +13,7 @@ In the ``projected`` flavour each call's Hessian (and each definition's sum
 mu_i nabla^2 F_i) is projected onto the positive semidefinite cone first
 (:mod:`locoman.to.convexify`).
 
-Two things make this cheaper than the same sums as a CasADi MX graph (issue 47; the numbers
+Two things make this cheaper than the same sums as a CasADi MX graph (the numbers
 are in docs/performance.md):
 
 - **Calls far from contact are skipped.** A one-sided penalty (:attr:`Term.one_sided`, the

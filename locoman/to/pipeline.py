@@ -118,7 +118,7 @@ def write_solution(
             "v": traj.v,
             "foot_wrench": traj.foot_wrench,
             "hand_wrench": traj.hand_wrench,
-            "object_names": np.array(names),
+            "object_names": np.array(names, dtype=str),
             "object_q": traj.object_q,
             "object_v": traj.object_v,
             "support_wrench": traj.support_wrench,
@@ -137,12 +137,16 @@ def write_solution(
             "object_goal": goals,
             "goal_node": goal_nodes,
             "floor_friction": np.array(float(cfg.contact.floor_friction)),
-            "object_friction": np.array([obj.friction for obj in inputs.objects]),
-            "object_half_extents": np.array([obj.half_extents for obj in inputs.objects]),
+            # Shapes and types written out: a scene may have no movable object (M = 0).
+            "object_friction": np.array([obj.friction for obj in inputs.objects], dtype=float),
+            "object_half_extents": np.array(
+                [obj.half_extents for obj in inputs.objects], dtype=float
+            ).reshape(-1, 2),
             "rear_axle_x": np.array(
-                [np.nan if obj.rear_axle_x is None else obj.rear_axle_x for obj in inputs.objects]
+                [np.nan if obj.rear_axle_x is None else obj.rear_axle_x for obj in inputs.objects],
+                dtype=float,
             ),
-            "prehensile": np.array(prehensile),
+            "prehensile": np.array(prehensile, dtype=bool),
             "sole_half_extents": contact_frames().sole_half_extents,
             "palm_half_extents": np.array(cfg.contact.palm_half_extents_m),
             "hand_points": traj.hand_points,
