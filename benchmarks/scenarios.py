@@ -147,26 +147,33 @@ def _child(task: str, root: Path) -> dict[str, Any]:
         return {"task": task, "stage": "crashed", "error": tail}
 
 
-def contact_sheet(records: list[dict[str, Any]], work: Path, out: Path) -> None:
-    """The tasks' filmstrips one above the other, each titled with its verdict."""
+def contact_sheet(records: list[dict[str, Any]], work: Path, out: Path, columns: int = 3) -> None:
+    """The tasks' filmstrips in a grid, ``columns`` wide, each titled with its verdict."""
     import cv2
 
     from locoman.artifacts import write_png
 
-    rows = []
+    width = 560
+    tiles = []
     for r in records:
         strip = work / r["task"] / "evaluate" / "plots" / "filmstrip.png"
         image = cv2.imread(str(strip), cv2.IMREAD_COLOR) if strip.is_file() else None
         if image is None:
-            image = np.full((120, 1600, 3), 255, np.uint8)
-        image = cv2.resize(image, (1600, round(image.shape[0] * 1600 / image.shape[1])))
+            image = np.full((280, width, 3), 255, np.uint8)
+        image = cv2.resize(image, (width, round(image.shape[0] * width / image.shape[1])))
         verdict = (
             f"{r['task']}: {'passes' if r.get('passes') else 'FAILS'}, "
-            f"{r.get('solver_status', r.get('stage'))}, {r.get('iterations', '-')} iterations"
+            f"{r.get('iterations', '-')} its"
         )
-        title = np.full((40, 1600, 3), 255, np.uint8)
-        cv2.putText(title, verdict, (10, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 0), 2)
-        rows += [title, image]
+        title = np.full((26, width, 3), 255, np.uint8)
+        cv2.putText(title, verdict, (6, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1)
+        tiles.append(np.vstack([title, image]))
+    height = max(t.shape[0] for t in tiles)
+    tiles = [
+        np.pad(t, ((0, height - t.shape[0]), (0, 0), (0, 0)), constant_values=255) for t in tiles
+    ]
+    tiles += [np.full_like(tiles[0], 255)] * (-len(tiles) % columns)
+    rows = [np.hstack(tiles[i : i + columns]) for i in range(0, len(tiles), columns)]
     write_png(out, cv2.cvtColor(np.vstack(rows), cv2.COLOR_BGR2RGB))
 
 
