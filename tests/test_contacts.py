@@ -19,6 +19,7 @@ from locoman.contact.registration import (
     View,
     _fit_yaw,
     draw_hypotheses,
+    gates,
     icp,
     level,
     overlap_scores,
@@ -236,11 +237,11 @@ def test_selection_takes_the_best_overlap_that_is_upright_and_faces_the_person()
     overlaps = np.array([0.9, 0.7, 0.8, 0.95])
     tilts = np.array([2.0, 3.0, 1.0, 80.0])  # the best overlap is lying on its side
     facing = np.array([90.0, 5.0, 30.0, 0.0])  # the next best turns its side to the person
-    assert select(overlaps, tilts, facing, cfg) == 2
+    assert select(overlaps, gates(tilts, facing, cfg)) == 2
     # No facing known, or nobody passes a gate: that gate is dropped.
-    assert select(overlaps, tilts, np.full(4, np.nan), cfg) == 0
-    assert select(overlaps, tilts, np.full(4, 90.0), cfg) == 0
-    assert select(overlaps, np.full(4, 90.0), facing, cfg) == 3
+    assert select(overlaps, gates(tilts, np.full(4, np.nan), cfg)) == 0
+    assert select(overlaps, gates(tilts, np.full(4, 90.0), cfg)) == 0
+    assert select(overlaps, gates(np.full(4, 90.0), facing, cfg)) == 3
 
 
 def test_first_hypothesis_is_top1_and_draws_stay_valid():

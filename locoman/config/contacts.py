@@ -138,6 +138,39 @@ class RegistrationCfg:
 
 
 @dataclass
+class ConfidenceCfg:
+    """When a registration is doubtful (:mod:`locoman.contact.confidence`).
+
+    Attributes:
+        min_overlap: The winner's overlap F-score below which it is doubtful [-].
+        min_margin: How far the winner's overlap must beat the best hypothesis that places
+            the cloud otherwise [-].
+        min_silhouette_iou: IoU of the registered object's silhouette with R_g's mask [-].
+        distinct_fraction: A hypothesis places the cloud otherwise when it moves its points
+            by more than this fraction of the object's size (median) [-].
+        silhouette_radius_px: Radius each surface sample is drawn with in R_g [px].
+    """
+
+    min_overlap: float = 0.5
+    min_margin: float = 0.02
+    min_silhouette_iou: float = 0.5
+    distinct_fraction: float = 0.1
+    silhouette_radius_px: int = 3
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        for name in ("min_overlap", "min_margin", "min_silhouette_iou", "distinct_fraction"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                errors.append((name, f"must be in [0, 1], got {getattr(self, name)}"))
+        if not 0 <= self.silhouette_radius_px <= 50:
+            errors.append(("silhouette_radius_px", "must be in [0, 50] px"))
+        return errors
+
+
+ON_DOUBT = ("warn", "fail", "fallback")
+
+
+@dataclass
 class ContactsCfg:
     """Stage ``contacts``: contact locations L on the simulated objects and the human's
     placement relative to the object.
@@ -151,6 +184,10 @@ class ContactsCfg:
         anchor_quantile: Quantile of the keypoints' depth ratios (lifted / pose) taken as
             the anchor's depth scale; high, because occluders and the body's surface only
             make the lifted depth nearer [-].
+        confidence: When a registration is doubtful.
+        on_doubt: What a doubtful registration does: ``warn`` (a warning naming the
+            subtask; its contacts are used), ``fail`` (the stage stops, naming it) or
+            ``fallback`` (the naive contacts of Sec. V-B replace its contacts).
     """
 
     method: str = "registration"
@@ -158,9 +195,12 @@ class ContactsCfg:
     anchor_quantile: float = 0.9
     pool: PoolCfg = field(default_factory=PoolCfg)
     registration: RegistrationCfg = field(default_factory=RegistrationCfg)
+    confidence: ConfidenceCfg = field(default_factory=ConfidenceCfg)
+    on_doubt: str = "warn"
 
     def check(self) -> list[tuple[str, str]]:
         errors = _choice("method", self.method, METHODS)
+        errors += _choice("on_doubt", self.on_doubt, ON_DOUBT)
         errors += _choice("lift", self.lift, LIFTS)
         if not 0.0 <= self.anchor_quantile <= 1.0:
             errors.append(("anchor_quantile", f"must be in [0, 1], got {self.anchor_quantile}"))

@@ -24,7 +24,7 @@ PLOTS_DIR = "plots"
 
 CONTACTS = ArtifactSchema(
     "contact.transfer",
-    2,
+    3,
     "contacts",
     (
         Field("method", "str", (), "-", "registration or naive"),
@@ -43,6 +43,13 @@ CONTACTS = ArtifactSchema(
         Field("scale", "float64", (), "-", "scale of T_world_gen"),
         Field("overlap", "float64", (), "-", "overlap score of the best hypothesis"),
         Field("iteration", "int64", (), "-", "1-based hypothesis that won"),
+        # How far the registration can be trusted without the ground truth
+        # (locoman.contact.confidence), and whose contacts L is.
+        Field("runner_up", "float64", (), "-", "best overlap of a hypothesis placing it otherwise"),
+        Field("margin", "float64", (), "-", "overlap - runner_up"),
+        Field("silhouette_iou", "float64", (), "-", "registered silhouette vs R_g's mask"),
+        Field("doubtful", "bool", (), "-", "a confidence signal below its threshold"),
+        Field("used", "str", (), "-", "whose contacts L holds: registration or naive"),
         Field("T_world_pelvis", "float64", (4, 4), "m", "human pelvis placed in the scene"),
         Field("T_object_pelvis", "float64", (4, 4), "m", "pelvis pose relative to the object"),
         Field("pool_gen_px", "float64", ("S", 2), "px", "points sampled on the object in R_g"),

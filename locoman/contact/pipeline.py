@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,7 @@ from locoman.contact.kabsch import decompose_similarity
 from locoman.contact.plot import contact_plot
 from locoman.contact.scoring import score_subtask, summarise, true_contacts
 from locoman.contact.transfer import SubtaskInputs, Transfer, primitives_of, transfer_subtask
-from locoman.errors import ArtifactError
+from locoman.errors import ArtifactError, SceneError
 from locoman.perception.generate import subtask_rng
 from locoman.perception.io import CLOUDS, MASKS, POSE, PROMPTS, PROMPTS_FILE, SIM_VIEW, read_png
 from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
@@ -31,6 +32,7 @@ from locoman.progress import progress
 from locoman.scene.io import load_objects
 
 CONTACTS_SEED_OFFSET = 3  # the contacts stage draws from its own stream
+log = logging.getLogger(__name__)
 
 
 def load_inputs(
@@ -102,6 +104,11 @@ def write_transfer(
             "scale": np.array(decompose_similarity(reg.transform)[0]),
             "overlap": np.array(reg.overlap),
             "iteration": np.array(reg.iteration, dtype=np.int64),
+            "runner_up": np.array(r.confidence.runner_up),
+            "margin": np.array(r.confidence.margin),
+            "silhouette_iou": np.array(r.confidence.silhouette_iou),
+            "doubtful": np.array(r.confidence.doubtful),
+            "used": np.array(r.used),
             "T_world_pelvis": r.T_world_pelvis,
             "T_object_pelvis": T_object_world @ r.T_world_pelvis,
             "pool_gen_px": r.pool.gen_px,
@@ -144,12 +151,28 @@ def contacts_scenario(
             out_dir / PLOTS_DIR / f"subtask_{i}.png",
             contact_plot(inputs, result, truth_world, title),
         )
+        trust = result.confidence
+        if trust.doubtful:
+            why = "; ".join(trust.reasons)
+            what = f"{scenario} {inputs.where}: the registration is doubtful ({why})"
+            if cfg.on_doubt == "fail":
+                raise SceneError(
+                    f"{what}; contacts.on_doubt is fail. Check its image and masks, or set "
+                    "contacts.on_doubt to warn or fallback (the naive contacts)"
+                )
+            log.warning(
+                "%s; its contacts are the %s ones (contacts.on_doubt: %s)",
+                what,
+                result.used,
+                cfg.on_doubt,
+            )
         row: dict[str, Any] = {
             "index": i,
             "effectors": inputs.effectors,
             "surfaces": result.surfaces,
             "iterations_to_best": result.registration.iteration,
-            "overlap": result.registration.overlap,
+            **trust.as_dict(),
+            "used": result.used,
             "scale": decompose_similarity(result.registration.transform)[0],
             "seconds": seconds,
         }
@@ -179,6 +202,12 @@ def _aggregate(rows: list[dict[str, Any]], cfg: ContactsCfg) -> dict[str, Any]:
             [r.get("pelvis_position_error_m") for r in scored]
         ),
         "iterations_to_best": float(np.median([r["iterations_to_best"] for r in rows])),
+        # Subtasks whose registration is doubtful (locoman.contact.confidence), and whose
+        # contacts the naive ones replaced (contacts.on_doubt: fallback).
+        "doubtful_subtasks": [r["index"] for r in rows if r["doubtful"]],
+        "fallback_subtasks": [
+            r["index"] for r in rows if r["used"] == "naive" and cfg.method != "naive"
+        ],
         "seconds_per_subtask": float(np.median([r["seconds"] for r in rows])),
         "per_subtask": rows,
     }

@@ -81,6 +81,8 @@ class Registration:
         tilt_deg: (H, T) angle between the person's up direction, mapped, and world +z [deg].
         facing_error_deg: (H, T) angle between the person's facing and the object's +x [deg]
             (NaN without a facing direction).
+        candidates: (H, T, 4, 4) every hypothesis after ICP.
+        gated: (H, T) those that passed the gates the winner was chosen among.
     """
 
     transform: np.ndarray
@@ -93,6 +95,8 @@ class Registration:
     scales: np.ndarray
     tilt_deg: np.ndarray
     facing_error_deg: np.ndarray
+    candidates: np.ndarray
+    gated: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)
@@ -438,10 +442,8 @@ def facing_errors(
     return np.degrees(np.abs(np.arctan2(local[:, 1], local[:, 0])))
 
 
-def select(
-    overlaps: np.ndarray, tilts: np.ndarray, facing: np.ndarray, cfg: RegistrationCfg
-) -> int:
-    """Index of the winner: the best overlap among hypotheses that keep the object upright
+def gates(tilts: np.ndarray, facing: np.ndarray, cfg: RegistrationCfg) -> np.ndarray:
+    """The hypotheses (H,) the winner is chosen among: those that keep the object upright
     (tilt within ``max_tilt_deg``) and face the person to the approach side (facing error
     within ``max_facing_deg``; NaN, when the facing is unknown, passes). Each gate is
     dropped when no hypothesis passes it."""
@@ -449,8 +451,11 @@ def select(
     if not keep.any():
         keep = np.ones_like(keep)
     facing_ok = keep & ~(facing > cfg.max_facing_deg)
-    if facing_ok.any():
-        keep = facing_ok
+    return facing_ok if facing_ok.any() else keep
+
+
+def select(overlaps: np.ndarray, keep: np.ndarray) -> int:
+    """Index of the winner: the best overlap among the hypotheses ``keep`` lets through."""
     return int(np.argmax(np.where(keep, overlaps, -np.inf)))
 
 
@@ -517,7 +522,8 @@ def register(
     overlaps = overlap_scores(source, surface, flat, cfg.overlap_distance * size, view)
     tilts = tilt_errors(flat, person.up)
     facing = facing_errors(flat, person.facing, surface.T_world_object)
-    best = select(overlaps, tilts, facing, cfg)
+    keep = gates(tilts, facing, cfg)
+    best = select(overlaps, keep)
     shape = turned.shape[:2]
     iteration, turn = np.unravel_index(best, shape)
     affine, stretch = refine_axes(
@@ -541,4 +547,6 @@ def register(
         scales=np.cbrt(np.linalg.det(flat[:, :3, :3])).reshape(shape),
         tilt_deg=tilts.reshape(shape),
         facing_error_deg=facing.reshape(shape),
+        candidates=flat.reshape(*shape, 4, 4),
+        gated=keep.reshape(shape),
     )

@@ -24,6 +24,7 @@ import numpy as np
 
 from locoman.config.contacts import ContactsCfg
 from locoman.contact import semantic
+from locoman.contact.confidence import Confidence, confidence
 from locoman.contact.kabsch import apply, decompose_similarity
 from locoman.contact.lift import SOLE_KEYPOINTS, Anchor, fit_anchor, support_up
 from locoman.contact.registration import Person, Registration, Surface, View, register
@@ -97,6 +98,9 @@ class Transfer:
         pool: The semantic score pool.
         lifted: (C, 3) hands and feet in R_g's metric camera frame [m].
         anchor: Maps R_g's metric camera frame to its lifted cloud's frame.
+        confidence: How far the registration can be trusted, without the ground truth.
+        used: Whose contacts ``points_world`` holds: ``registration`` or ``naive`` (the
+            method, or a doubtful registration's fallback: ``contacts.on_doubt``).
     """
 
     points_world: np.ndarray
@@ -110,6 +114,8 @@ class Transfer:
     pool: semantic.ScorePool
     lifted: np.ndarray
     anchor: Anchor
+    confidence: Confidence
+    used: str
 
 
 def lift_pixels(px: np.ndarray, depth: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -256,25 +262,32 @@ def transfer_subtask(
     s, n = pool.sim_px.shape[:2]
     dst_cam, valid = lift_pixels(pool.sim_px.reshape(-1, 2), inputs.sim_depth, inputs.sim_K)
     dst = camera.transform(dst_cam, inputs.T_world_sim).reshape(s, n, 3)
+    source = anchor.undo(inputs.cloud)
+    surface = object_surface(inputs, cfg.registration.model_points, rng)
+    view = _view(inputs, anchor, cfg.registration.occlusion_margin_m)
     reg = register(
-        anchor.undo(inputs.cloud),
-        object_surface(inputs, cfg.registration.model_points, rng),
+        source,
+        surface,
         anchor.undo(src),
         dst,
         valid.reshape(s, n),
         person,
-        _view(inputs, anchor, cfg.registration.occlusion_margin_m),
+        view,
         cfg.registration,
         rng,
         inputs.where,
     )
+    trust = confidence(reg, surface, source, view, inputs.mask, cfg.confidence)
     T = reg.transform
     _, rot, _ = decompose_similarity(T)
     T_world_pelvis = np.eye(4)
     T_world_pelvis[:3, :3] = rot @ inputs.T_cam_pelvis[:3, :3]
     T_world_pelvis[:3, 3] = apply(T, pelvis[None])[0]
     naive_normals = _naive_normals(naive, inputs)
-    if cfg.method == "naive":
+    used = "naive" if cfg.method == "naive" else "registration"
+    if trust.doubtful and cfg.on_doubt == "fallback":
+        used = "naive"
+    if used == "naive":
         raw = naive
         points, normals, surfaces = naive, naive_normals, ["object"] * len(naive)
     else:
@@ -292,6 +305,8 @@ def transfer_subtask(
         pool,
         lifted,
         anchor,
+        trust,
+        used,
     )
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,8 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_plan, load_scene_model
 from locoman.scene.plan_state import plan_states
+
+log = logging.getLogger(__name__)
 
 
 def feet_left_standing(contacts: dict[str, Any], before: dict[str, np.ndarray]):
@@ -110,6 +113,18 @@ def retarget_scenario(
         if entry["object"] in poses:
             poses[entry["object"]] = contacts["T_world_object"]
         row = _check(i, entry, result, points, contacts, generate_dir, cfg)
+        # Whose contacts the keyframe reaches for: a doubtful registration's, or the naive
+        # ones that replaced them (contacts.on_doubt), said where it matters.
+        row["contacts_used"] = str(contacts["used"])
+        row["contacts_doubtful"] = bool(contacts["doubtful"])
+        if row["contacts_doubtful"]:
+            log.warning(
+                "subtask %d (%r): its contacts come from a doubtful registration; the keyframe "
+                "uses the %s ones",
+                i,
+                entry["prompt"],
+                row["contacts_used"],
+            )
         rows.append(row)
         in_contact = [t.in_contact for t in (*problem.hands, *problem.feet)]
         surfaces = [str(s) for s in contacts["surfaces"]]
@@ -255,6 +270,7 @@ def _aggregate(rows: list[dict[str, Any]], seconds: list[float], out_dir: Path) 
         "foot_contact_residual_max_m": worst("_foot", False),
         "reachable_hand_residual_max_m": worst("_hand", True),
         "unreachable_contacts": sum(len(row["unreachable"]) for row in rows),
+        "doubtful_contacts_subtasks": [r["index"] for r in rows if r["contacts_doubtful"]],
         "joint_limit_violation_max_rad": max(r["joint_limit_violation_rad"] for r in rows),
         # Within retarget.base_tilt_max_rad, or the TO cannot take the keyframe.
         "base_roll_pitch_max_rad": max(r["base_roll_pitch_rad"] for r in rows),
