@@ -8,13 +8,16 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from locoman.config.contacts import ContactsCfg, PoolCfg, RegistrationCfg
+from locoman.config.contacts import ConfidenceCfg, ContactsCfg, PoolCfg, RegistrationCfg
 from locoman.contact import semantic
+from locoman.contact.confidence import cloud_moved, confidence
 from locoman.contact.kabsch import apply, decompose_similarity, similarity_matrix, umeyama
 from locoman.contact.lift import fit_anchor, support_up
 from locoman.contact.registration import (
+    Registration,
     Surface,
     View,
     _fit_yaw,
@@ -389,3 +392,79 @@ def test_contacts_config_rejects_bad_values():
     bad.pool.top_n = 0
     keys = {key for key, _ in walk_checks(bad)}
     assert {"method", "lift", "registration.scale_range", "pool.points"} <= keys
+
+
+def _viewed_box(rng: np.random.Generator):
+    """A box's surface, a camera looking at it, what the camera sees of it (its cloud in
+    the camera frame) and its silhouette in the image."""
+    surface, pose = _box_surface(rng)
+    centre = pose[:3, 3] + [0.0, 0.0, 0.1]
+    truth = camera.look_at(centre + np.array([1.0, -0.7, 0.6]), centre)
+    K = camera.intrinsics_from_fovy(256, 256, np.radians(45.0))
+    view = View(np.zeros((256, 256)), K, np.ones(3), np.zeros(3), 0.05)
+    facing = seen_target(surface.points, surface.normals, truth[None], None)[0]
+    source = camera.to_camera(surface.points[facing][::2], truth)
+    # The mask is the silhouette the true pose draws (what a perfect segmentation gives).
+    mask = np.zeros((256, 256), dtype=bool)
+    for u, v in np.floor(camera.project(camera.to_camera(surface.points, truth), K)).astype(int):
+        if 0 <= u < 256 and 0 <= v < 256:
+            mask[v, u] = True
+    mask = ndimage.binary_fill_holes(ndimage.binary_dilation(mask, iterations=3))
+    return surface, truth, view, source, mask
+
+
+def _registration(candidates: np.ndarray, overlaps: np.ndarray, best: int) -> Registration:
+    h = len(candidates)
+    return Registration(
+        transform=candidates[best],
+        affine=candidates[best],
+        stretch=np.ones(3),
+        overlap=float(overlaps[best]),
+        iteration=best + 1,
+        turn=0,
+        overlaps=overlaps.reshape(h, 1),
+        scales=np.ones((h, 1)),
+        tilt_deg=np.zeros((h, 1)),
+        facing_error_deg=np.zeros((h, 1)),
+        candidates=candidates.reshape(h, 1, 4, 4),
+        gated=np.ones((h, 1), dtype=bool),
+    )
+
+
+def test_a_registration_in_a_wrong_basin_is_flagged_and_a_right_one_is_not():
+    """ICP started a quarter turn off converges in another basin: its silhouette in the
+    image is not the object's, and another pose fits the cloud as well; from near the truth
+    it converges there and every signal is high."""
+    rng = np.random.default_rng(2)
+    surface, truth, view, source, mask = _viewed_box(rng)
+    near = truth.copy()
+    near[:3, 3] += [0.02, -0.01, 0.0]
+    turn = np.eye(4)
+    turn[:3, :3] = Rotation.from_euler("z", np.pi / 2).as_matrix()
+    pivot = surface.T_world_object[:3, 3]
+    turn[:3, 3] = pivot - turn[:3, :3] @ pivot
+    starts = np.stack([near, turn @ truth])
+    refined = icp(source, surface, starts, 0.1, 40, False, (1.0, 1.0), upright=True, view=view)
+    overlaps = overlap_scores(source, surface, refined, 0.01, view)
+    cfg = ConfidenceCfg()
+    right = confidence(_registration(refined, overlaps, 0), surface, source, view, mask, cfg)
+    assert not right.doubtful, right
+    assert right.silhouette_iou > 0.8 and right.margin > cfg.min_margin
+    wrong = confidence(_registration(refined, overlaps, 1), surface, source, view, mask, cfg)
+    assert wrong.doubtful
+    assert any("silhouette" in r or "margin" in r for r in wrong.reasons), wrong.reasons
+    assert wrong.silhouette_iou < right.silhouette_iou
+
+
+def test_a_pose_that_places_the_cloud_alike_is_no_rival():
+    """Two hypotheses a millimetre apart are the same pose: no margin is asked between
+    them; one that moves the cloud by a tenth of the object is another."""
+    rng = np.random.default_rng(3)
+    source = rng.normal(size=(200, 3))
+    a = np.eye(4)
+    b = np.eye(4)
+    b[:3, 3] = [0.001, 0.0, 0.0]
+    c = np.eye(4)
+    c[:3, 3] = [0.2, 0.0, 0.0]
+    moved = cloud_moved(np.stack([a, b, c]), a, source)
+    np.testing.assert_allclose(moved, [0.0, 0.001, 0.2], atol=1e-12)

@@ -25,7 +25,7 @@ from hydra.errors import HydraException
 from omegaconf.errors import OmegaConfBaseException
 
 from locoman.artifacts.io import write_text_atomic
-from locoman.config.load import validate
+from locoman.config.load import read_mapping, validate
 from locoman.config.schema import RootCfg
 from locoman.errors import ConfigError
 
@@ -40,15 +40,10 @@ def scenario_files(conf_dir: Path = CONF_DIR) -> dict[str, dict]:
     Raises:
         ConfigError: A file YAML cannot read, or one that is not a mapping.
     """
-    found = {}
-    for path in sorted((conf_dir / "scenario").glob("*.yaml")):
-        try:
-            content = yaml.safe_load(path.read_text())
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{path} is not valid YAML: {_first_line(exc)}") from None
-        if not isinstance(content, dict):
-            raise ConfigError(f"{path} must hold a mapping (robot, objects, plan, ...)")
-        found[path.stem] = content
+    found = {
+        path.stem: read_mapping(path, "a mapping (robot, objects, plan, ...)")
+        for path in sorted((conf_dir / "scenario").glob("*.yaml"))
+    }
     listed = _listed(conf_dir)
     order = [n for n in listed if n in found] + [n for n in found if n not in listed]
     return {n: found[n] for n in order}

@@ -44,10 +44,20 @@ def load_params(path: str | Path = PARAMS_FILE) -> RootCfg:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path} is missing; compose it from conf/ with `make params`")
+    return validate(read_mapping(path, "a mapping at the top level"))
+
+
+def read_mapping(path: Path, what: str) -> dict:
+    """The YAML mapping in ``path``.
+
+    Raises:
+        ConfigError: YAML cannot read it (its line and column named), or it holds no
+            mapping (``what`` says what it should hold).
+    """
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = yaml.safe_load(Path(path).read_text())
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path} is not valid YAML: {exc}") from None
+        raise ConfigError(f"{path} is not valid YAML: {' '.join(str(exc).split())}") from None
     if not isinstance(raw, dict):
-        raise ConfigError(f"{path} must hold a mapping at the top level")
-    return validate(raw)
+        raise ConfigError(f"{path} must hold {what}")
+    return raw
