@@ -72,7 +72,9 @@ def run(scenario: str, seed: int, size: int) -> dict[str, Any]:
             masks_scenario(scenario, gen, msk, masks_cfg, seed)
             clouds_scenario(scenario, gen, msk, cld, clouds_cfg, p.depth_error, seed)
             if name == "folder":  # the truth, for scoring only: contact transfer ignores it
-                shutil.copytree(render / GROUND_TRUTH_DIR, gen / GROUND_TRUTH_DIR)
+                shutil.copytree(
+                    render / GROUND_TRUTH_DIR, gen / GROUND_TRUTH_DIR, dirs_exist_ok=True
+                )
             contacts = contacts_scenario(scenario, scene, gen, msk, cld, con, cfg.contacts, seed)
             poses = [
                 kp.pose_errors(
