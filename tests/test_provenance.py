@@ -121,7 +121,7 @@ def test_every_committed_grid_has_its_provenance_and_lives_in_a_canonical_folder
         assert (record["scenario"], record["figure"]) == (folder.parent.name, folder.name)
         assert (folder / "summary.md").read_text().count("> Ran at `") == 1
     # Nothing else under benchmarks/results/ but <scenario>/<figure>/ folders, one JSON per
-    # benchmark script, and the README.
+    # benchmark script (and its picture, where it draws one), and the README.
     scripts = {p.stem for p in (repo / "benchmarks").glob("*.py")}
     for entry in results.iterdir():
         if entry.is_dir():
@@ -129,6 +129,8 @@ def test_every_committed_grid_has_its_provenance_and_lives_in_a_canonical_folder
         elif entry.suffix == ".json":
             assert entry.stem in scripts, f"{entry.name}: no benchmark of that name"
             assert json.loads(entry.read_text()).get("commit"), f"{entry.name}: no commit"
+        elif entry.suffix == ".png":  # a benchmark's picture beside its JSON
+            assert (results / f"{entry.stem}.json").is_file(), entry
         else:
             assert entry.name == "README.md", entry
 
