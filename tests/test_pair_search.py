@@ -304,7 +304,7 @@ class _Stuck:
         self.guess = guess
         self.restarts: list[int] = []
 
-    def solve(self, pairs, warm_start=None, hessian=None):
+    def solve(self, pairs, warm_start=None, hessian=None, label="first solve"):
         self.pairs.append(len(pairs))
         if warm_start is None:  # a restart from the guess
             self.restarts.append(len(pairs))
@@ -377,7 +377,7 @@ class _FailsWith(_Stuck):
         self.status = status
         self.kinds: list[set[str]] = []
 
-    def solve(self, pairs, warm_start=None, hessian=None):
+    def solve(self, pairs, warm_start=None, hessian=None, label="first solve"):
         self.kinds.append({p.kind for p in pairs})
         moved = super().solve(pairs, warm_start, hessian)
         if not self.fails(len(self.pairs), pairs):
@@ -557,7 +557,7 @@ class _Kept(_Stuck):
         super().__init__(guess)
         self.restart_pairs: list[list] = []
 
-    def solve(self, pairs, warm_start=None, hessian=None):
+    def solve(self, pairs, warm_start=None, hessian=None, label="first solve"):
         if warm_start is None:
             self.restart_pairs.append(list(pairs))
         return super().solve(pairs, warm_start, hessian)
