@@ -8,10 +8,10 @@ round of found pairs) and per Hessian flavour, at the initial guess with seeded 
 the time of one call of each oracle IPOPT calls (``hess_lag``, ``jac_g``, ``grad_f``), and of
 the compiled terms' Hessians alone, grouped by term kind, called over every call (the
 oracles skip a collision penalty's far calls: since the numeric oracles of
-:mod:`locoman.to.oracles` the terms' column can exceed the oracle's). The difference is the
+:mod:`locoman.to.nlp.oracles` the terms' column can exceed the oracle's). The difference is the
 assembly's: gathering the terms' inputs, scattering their nonzeros, and the chain rule
 through the virtual variables (sphere centres, kinematics;
-:class:`locoman.to.assembly.BlockNLP`). Also the sizes that drive it: the terms'
+:class:`locoman.to.nlp.ipopt.BlockNLP`). Also the sizes that drive it: the terms'
 Hessian nonzeros, the collision-pair calls, and the Hessian's nonzeros over x. Each time is
 the minimum of ``--repeats`` calls less the same minimum for a function that only takes the
 inputs (Python's conversion of them), so it holds on a busy machine.
@@ -36,10 +36,13 @@ import numpy as np
 from common import write_benchmark
 
 from locoman.config import load_params
-from locoman.to.assembly import HESSIANS, Block, BlockNLP, parameter_vector
-from locoman.to.bounds import bounds, initial_guess
-from locoman.to.loading import load_inputs
+from locoman.config.to import HESSIANS
+from locoman.to.nlp.ipopt import BlockNLP, parameter_vector
 from locoman.to.pipeline import build_optimizer
+from locoman.to.problem.loading import load_inputs
+from locoman.to.solve.bounds import bounds
+from locoman.to.solve.initial_guess import initial_guess
+from locoman.to.terms.term import Block
 
 
 def fastest(function: ca.Function, args: tuple, repeats: int) -> float:

@@ -1,4 +1,4 @@
-"""One check of a solution by the collision rounds (:mod:`locoman.to.pair_search`), timed.
+"""One check of a solution by the collision rounds (:mod:`locoman.to.rounds.search`), timed.
 
 Usage: python benchmarks/pair_check.py [--scenarios tiny s1_basket s2_trolley] [--repeats 3]
        [--out benchmarks/results/pair_check.json]
@@ -6,8 +6,8 @@ Usage: python benchmarks/pair_check.py [--scenarios tiny s1_basket s2_trolley] [
 Per scenario, the committed solution (``data/<scenario>/solve/``: run the solves first)
 checked against the problem's starting pairs, as a first round checks the first solve:
 MuJoCo's close pairs along it (:func:`locoman.sim.audit.close_pairs`), then the pairs that
-answer them (:func:`locoman.to.found_pairs.round_pairs`, found and promoted) and the close
-pairs left unmodelled (:func:`locoman.to.found_pairs.unmodelled`), the starting pairs'
+answer them (:func:`locoman.to.rounds.found_pairs.round_pairs`, found and promoted) and the close
+pairs left unmodelled (:func:`locoman.to.rounds.found_pairs.unmodelled`), the starting pairs'
 identities made in it as in a first round. Wall and CPU seconds, medians over ``--repeats``
 runs.
 """
@@ -30,12 +30,12 @@ from locoman.config import load_params
 from locoman.config.to import scenario_solve
 from locoman.scene.io import load_scene_model
 from locoman.sim.audit import close_pairs
-from locoman.to.found_pairs import Check, Scene, round_pairs, unmodelled
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
-from locoman.to.loading import load_inputs
-from locoman.to.optimizer import Trajectory
-from locoman.to.pair_search import solution_scene
 from locoman.to.pipeline import build_optimizer
+from locoman.to.problem.loading import load_inputs
+from locoman.to.rounds.found_pairs import Check, Scene, round_pairs, unmodelled
+from locoman.to.rounds.search import solution_scene
+from locoman.to.solve.trajectory import Trajectory
 
 DATA = Path("data")
 

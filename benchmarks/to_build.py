@@ -30,8 +30,8 @@ from common import Clock, run
 
 from locoman.config import load_params
 from locoman.config.to import scenario_solve
-from locoman.to.loading import load_inputs
 from locoman.to.pipeline import build_optimizer
+from locoman.to.problem.loading import load_inputs
 
 DATA = Path("data")
 

@@ -37,3 +37,7 @@ class SolverError(LocomanError):
 
 class SetupError(LocomanError):
     """The Python environment lacks what the project needs (a package it depends on)."""
+
+
+class SolverBuildError(SolverError):
+    """The NLP could not be built or compiled."""

@@ -68,7 +68,7 @@ def tiny_scene(params, tmp_path_factory) -> Path:
 def _run_cli(
     args: list[str], cwd: Path, extra_env: dict[str, str] | None = None
 ) -> subprocess.CompletedProcess[str]:
-    from locoman.to.compile import CACHE_ENV
+    from locoman.to.nlp.compile import CACHE_ENV
 
     env = dict(os.environ) | dict(extra_env or {})
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"

@@ -16,7 +16,7 @@ from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from locoman.config.figures import FiguresCfg, GridCfg
-from locoman.config.to import EvaluateCfg, SolveCfg
+from locoman.config.to import KINDS, EvaluateCfg, SolveCfg
 from locoman.errors import ArtifactError, ConfigError
 from locoman.grid import cell as cell_module
 from locoman.grid.app import summary
@@ -50,7 +50,6 @@ from locoman.grid.sources import PACKAGE, imported_sources, imports_of
 from locoman.scene.builder import build_scene
 from locoman.scene.io import write_scene
 from locoman.sim.penetration import CLASSES
-from locoman.to.collision import KINDS
 
 
 def test_fig6_has_every_keyframe_combination_from_none_to_all():
@@ -164,7 +163,7 @@ def test_imports_are_read_at_any_depth_and_relative_ones_resolved():
     )
     assert imports_of(source, "locoman.to") == {
         "locoman.to",
-        "locoman.to.costs",
+        "locoman.to.terms.costs",
         "locoman.scene.g1",
         "locoman.scene.g1.load",
         "locoman.sim.camera",

@@ -105,7 +105,7 @@ def test_importing_locoman_changes_no_process_wide_setting():
         "import os, json\n"
         "import numpy, scipy, sklearn, casadi, pinocchio, mujoco, cv2, placo, hydra\n"
         "before = dict(os.environ)\n"
-        "import locoman, locoman.stage, locoman.to.optimizer, locoman.grid.launch\n"
+        "import locoman, locoman.stage, locoman.to.solve.optimizer, locoman.grid.launch\n"
         "import locoman.sim.evaluate, locoman.contact.semantic, locoman.kmp.fit\n"
         "import locoman.hqp.replay, locoman.retarget\n"
         "print(json.dumps(sorted(set(os.environ.items()) ^ set(before.items()))))"

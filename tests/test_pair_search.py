@@ -9,19 +9,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from locoman.config.to import CollisionCfg
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.io import load_objects, load_scene_model
 from locoman.sim.audit import Body, ClosePair, close_pairs, unscheduled_penetrations
-from locoman.to.collision import (
-    CollisionCfg,
-    box_edge_points,
-    edge_point_counts,
-    edge_points,
-    obstacles_from_objects,
-)
-from locoman.to.collision_pairs import object_boxes
-from locoman.to.found_pairs import (
+from locoman.to.collisions.boxes import box_edge_points, edge_point_counts, edge_points
+from locoman.to.collisions.pairs import object_boxes
+from locoman.to.problem.objects import ObjectModel, obstacles_from_objects
+from locoman.to.rounds.found_pairs import (
     ARM_LINKS,
     FLOOR_BOX,
     PROMOTED,
@@ -36,9 +32,8 @@ from locoman.to.found_pairs import (
     round_pairs,
     unmodelled,
 )
-from locoman.to.layout import ObjectModel
-from locoman.to.optimizer import Trajectory
-from locoman.to.pair_search import search
+from locoman.to.rounds.search import search
+from locoman.to.solve.trajectory import Trajectory
 
 NODES = 4
 BOX_ON_TABLE = np.array([0.4, 0.0, 0.72, 0.0, 0.0, 0.0])

@@ -10,20 +10,20 @@ import numpy as np
 import pytest
 
 from locoman.config import load_params
-from locoman.config.to import PaperSetCfg, SolveCfg, SolverCfg, scenario_solve
+from locoman.config.to import KINDS, PaperSetCfg, ScheduleCfg, SolveCfg, SolverCfg, scenario_solve
 from locoman.errors import ConfigError
 from locoman.grid.figures import short_reason
 from locoman.grid.report import default_figures
 from locoman.grid.runs import find_run
 from locoman.scene import g1
-from locoman.to.bounds import initial_guess
-from locoman.to.collision import KINDS
-from locoman.to.inputs import Keyframe, TOInputs, guided_by, guiding_keyframe
-from locoman.to.layout import NodeLayout, ObjectModel
-from locoman.to.modes import node_modes
-from locoman.to.node_parameters import node_parameters
-from locoman.to.schedule import ScheduleCfg, build_schedule
-from locoman.to.supports import Surface
+from locoman.to.problem.inputs import Keyframe, TOInputs, guided_by, guiding_keyframe
+from locoman.to.problem.layout import NodeLayout
+from locoman.to.problem.modes import node_modes
+from locoman.to.problem.numbers import node_parameters
+from locoman.to.problem.objects import ObjectModel
+from locoman.to.problem.schedule import build_schedule
+from locoman.to.solve.initial_guess import initial_guess
+from locoman.to.terms.supports import Surface
 
 S1_SET = PaperSetCfg(
     collision={"legs_object": "penalty", "object_environment": "penalty"}, keyframes=[0, 2]

@@ -21,8 +21,8 @@ from locoman.scene.builder import build_scene
 from locoman.scene.io import load_scene_model, write_scene
 from locoman.sim.audit import unscheduled_penetrations
 from locoman.sim.view import trajectory_qpos
-from locoman.to.compile import CACHE_ENV
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
+from locoman.to.nlp.compile import CACHE_ENV
 from locoman.to.pipeline import solve_scenario
 
 pytestmark = pytest.mark.slow

@@ -19,7 +19,7 @@ from locoman.scene.builder import build_scene
 from locoman.scene.g1 import G1_JOINT_NAMES
 from locoman.scene.objects import object_geometry
 from locoman.scene.plan_state import plan_states
-from locoman.to.bounds import BASE_TILT_MAX
+from locoman.to.solve.bounds import BASE_TILT_MAX
 
 UP = np.array([0.0, 0.0, 1.0])
 TOE_CLEARANCE_M = 0.01  # [m] between the G1's toes and the shelf's front face

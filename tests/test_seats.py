@@ -1,5 +1,5 @@
 """An object on a fixed support above the floor: its bottom boxes reach down through the
-support where it holds them (:mod:`locoman.to.seats`), so that the way out of them is up
+support where it holds them (:mod:`locoman.to.collisions.boxes`), so that the way out of them is up
 or sideways, never into the support; where the object overhangs, its bottom is unchanged."""
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from locoman.config.to import ContactCfg
+from locoman.config.to import CollisionCfg, ContactCfg
 from locoman.retarget.robot import contact_frames
-from locoman.to.collision import CollisionCfg, Obstacle, box_clearance
-from locoman.to.collision_pairs import node_collision_pairs
-from locoman.to.layout import ObjectModel
-from locoman.to.modes import NodeMode, ObjectMode
-from locoman.to.seats import Seat, seat_on, seated_boxes
-from locoman.to.supports import Surface
+from locoman.to.collisions.boxes import Seat, seat_on, seated_boxes
+from locoman.to.collisions.pairs import node_collision_pairs
+from locoman.to.problem.modes import NodeMode, ObjectMode
+from locoman.to.problem.objects import ObjectModel, Obstacle
+from locoman.to.terms.collisions import box_clearance
+from locoman.to.terms.supports import Surface
 
 # S1's shelf (the bounding box of its primitives) and its basket's floor and a wall.
 SHELF = Obstacle("shelf", np.array([2.0, 0.0, 0.775]), 0.0, np.array([0.2, 0.45, 0.775]))

@@ -12,19 +12,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from locoman.to.assembly import (
-    Block,
-    BlockNLP,
-    RowSpace,
-    Term,
-    WarmStart,
-    carried_multipliers,
-    load_derivatives,
-    parameter_vector,
-    row_owners,
-    structure_key,
-)
-from locoman.to.compile import SolverBuildError
+from locoman.errors import SolverBuildError
+from locoman.to.nlp.derivatives import load_derivatives
+from locoman.to.nlp.ipopt import BlockNLP, parameter_vector, structure_key
+from locoman.to.nlp.multipliers import WarmStart, carried_multipliers, row_owners
+from locoman.to.terms.term import Block, RowSpace, Term
 
 N_X = 9  # x[8] is in no term: its gradient is a zero IPOPT must see as such
 
@@ -262,9 +254,9 @@ def test_a_solve_logs_its_progress_every_few_iterations(caplog) -> None:
     quiet = BlockNLP(N_X, blocks, rows, derivatives, "exact", options)
     logged = BlockNLP(N_X, blocks, rows, derivatives, "exact", options, progress_every=3)
     args = (np.full(N_X, 0.3), np.full(N_X, -5.0), np.full(N_X, 5.0), parameter_vector(blocks))
-    with caplog.at_level(logging.INFO, logger="locoman.to.progress"):
+    with caplog.at_level(logging.INFO, logger="locoman.to.nlp.progress"):
         result = logged.solve(*args, label="round 2")
-    lines = [r.getMessage() for r in caplog.records if r.name == "locoman.to.progress"]
+    lines = [r.getMessage() for r in caplog.records if r.name == "locoman.to.nlp.progress"]
     iterations = [int(re.search(r"iteration (\d+),", line).group(1)) for line in lines]
     assert iterations == list(range(0, result.iterations + 1, 3))
     assert all(line.startswith("round 2: iteration ") for line in lines)

@@ -10,31 +10,26 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from locoman.config.to import ContactCfg
+from locoman.config.to import KINDS, CollisionCfg, ContactCfg, CostWeights
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
 from locoman.scene.rotations import rpy_to_matrix
-from locoman.to.collision import (
-    KINDS,
-    CollisionCfg,
-    Obstacle,
+from locoman.to.collisions.boxes import box_corners, box_edge_points, edge_point_counts, edge_points
+from locoman.to.collisions.spheres import link_spheres
+from locoman.to.problem.layout import NodeLayout
+from locoman.to.problem.modes import NodeMode
+from locoman.to.problem.numbers import Numbers
+from locoman.to.problem.objects import Obstacle, obstacles_from_objects
+from locoman.to.terms.collisions import (
     box_clearance,
-    box_corners,
-    box_edge_points,
-    edge_point_counts,
-    edge_points,
-    link_spheres,
-    obstacles_from_objects,
+    collision_kind,
+    homotopy_weight_kind,
     penetration_residual,
     sphere_box_penetration,
     sphere_sphere_penetration,
 )
-from locoman.to.costs import CostWeights
-from locoman.to.layout import NodeLayout
-from locoman.to.modes import NodeMode
-from locoman.to.terms.collisions import collision_kind, homotopy_weight_kind
 from locoman.to.terms.library import g1_terms
-from locoman.to.transcription import Numbers, transcribe
+from locoman.to.transcription.transcribe import transcribe
 
 HALF = np.array([0.3, 0.2, 0.05])
 CFG = CollisionCfg()

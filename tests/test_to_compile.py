@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from locoman.artifacts.io import split_wall_clock
-from locoman.to.compile import Recipe, SolverBuildError, compile_units, compiler, load_or_compile
+from locoman.errors import SolverBuildError
+from locoman.to.nlp.compile import Recipe, compile_units, compiler, load_or_compile
 
 
 def test_wall_clock_figures_are_split_from_the_results_at_any_depth():
@@ -42,7 +43,7 @@ def _tiny_function(name: str) -> ca.Function:
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 def test_a_truncated_library_is_rebuilt_not_loaded(tmp_path, caplog):
-    caplog.set_level(logging.INFO, logger="locoman.to.compile")
+    caplog.set_level(logging.INFO, logger="locoman.to.nlp.compile")
     compile_units([[_tiny_function("f_jac")]], tmp_path)
     (library,) = tmp_path.glob("to_*.so")
     library.write_bytes(library.read_bytes()[:100])  # an interrupted copy

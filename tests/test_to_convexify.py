@@ -1,5 +1,5 @@
 """The projected Hessian: each term call's curvature projected onto the positive
-semidefinite cone (:mod:`locoman.to.convexify`), against NumPy's eigendecomposition, and
+semidefinite cone (:mod:`locoman.to.nlp.convexify`), against NumPy's eigendecomposition, and
 assembled against the same NLP's Hessians computed call by call."""
 
 from __future__ import annotations
@@ -11,8 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from locoman.to.assembly import BlockNLP, load_derivatives, parameter_vector
-from locoman.to.convexify import block_pattern, project_psd
+from locoman.to.nlp.convexify import block_pattern, project_psd
+from locoman.to.nlp.derivatives import load_derivatives
+from locoman.to.nlp.ipopt import BlockNLP, parameter_vector
 from tests.test_to_assembly import N_X, RowSpace, _blocks, _virtual_problem
 
 

@@ -6,12 +6,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from locoman.config.to import CostWeights, averaged_over_nodes
 from locoman.scene import g1
-from locoman.to.costs import (
+from locoman.to.terms.costs import (
     ARM_NOMINAL,
     ARMS,
-    CostWeights,
-    averaged_over_nodes,
     keyframe_base_cost,
     keyframe_foot_cost,
     regularization_cost,

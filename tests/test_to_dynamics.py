@@ -1,25 +1,22 @@
-"""Centroidal dynamics and contact kinds on single-body toy problems solved by IPOPT."""
+"""Centroidal dynamics and contact kinds on single-body toy problems solved by IPOPT, the
+dynamics (1) through the TO's compiled kinds (:mod:`to_toys`)."""
 
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 import pytest
+from to_toys import object_dynamics
 
-from locoman.to.contacts import (
+from locoman.to.terms.contacts import (
     friction_cone_cop,
     interactive_contact,
-    newton_third_law,
     no_rolling,
     patch_contact,
     sinking_bound,
 )
-from locoman.to.dynamics import (
-    configuration_step,
-    momentum_step,
-    rigid_body_momentum,
-)
-from locoman.to.kinematics import euler_rates_to_world, rpy_matrix
+from locoman.to.terms.dynamics import rigid_body_momentum
+from locoman.to.terms.kinematics import euler_rates_to_world, rpy_matrix
 
 MASS = 5.0  # [kg]
 SIZE = np.array([0.25, 0.3, 0.2])  # [m] box extents; its frame sits at the bottom face centre
@@ -30,22 +27,20 @@ DT = 0.02  # [s]
 
 def test_falling_body_follows_semi_implicit_euler():
     """No contacts: the momentum gains m g dt per step and the body falls as (1) says."""
-    q, v = ca.SX.sym("q", 6), ca.SX.sym("v", 6)
-    h, com = rigid_body_momentum(q, v, MASS, INERTIA, COM)
-    step = ca.Function("step", [q, v], [momentum_step(h, com, [], MASS, DT), com])
+    q, v, z = ca.SX.sym("q", 6), ca.SX.sym("v", 6), ca.SX.sym("z", 12)
+    rows = object_dynamics(q, v, z[0:6], z[6:12], [], mass=MASS, inertia=INERTIA, com=COM, dt=DT)
+    step = ca.rootfinder("step", "newton", ca.Function("rows", [z, ca.vertcat(q, v)], [rows]))
+    h, _ = rigid_body_momentum(q, v, MASS, INERTIA, COM)
     momentum = ca.Function("h", [q, v], [h])
     qk = np.array([0.0, 0.0, 1.0, 0.1, -0.2, 0.3])
     vk = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
     for _ in range(10):
-        h_next, _ = step(qk, vk)
-        # The next velocity is the one whose momentum is h_next (the angular part is 0).
-        v_next = vk.copy()
-        v_next[0:3] = np.asarray(h_next[0:3]).ravel() / MASS
-        np.testing.assert_allclose(np.asarray(h_next[3:]).ravel(), 0.0, atol=1e-12)
-        q_next = np.asarray(configuration_step(ca.DM(qk), ca.DM(v_next), DT)).ravel()
-        np.testing.assert_allclose(
-            np.asarray(momentum(q_next, v_next)).ravel(), np.asarray(h_next).ravel(), atol=1e-9
-        )
+        z_next = np.asarray(step(np.r_[qk, vk], np.r_[qk, vk])).ravel()
+        q_next, v_next = z_next[0:6], z_next[6:12]
+        h_gained = np.asarray(momentum(q_next, v_next) - momentum(qk, vk)).ravel()
+        np.testing.assert_allclose(h_gained, [0, 0, -MASS * 9.81 * DT, 0, 0, 0], atol=1e-9)
+        np.testing.assert_allclose(q_next, qk + v_next * DT, atol=1e-12)  # (1b)
+        np.testing.assert_allclose(v_next[3:], 0.0, atol=1e-9)  # no torque, no turn
         qk, vk = q_next, v_next
     # Ten steps: v_z = -10 g dt, z = 1 - g dt^2 (1 + 2 + ... + 10).
     assert vk[2] == pytest.approx(-10 * 9.81 * DT)
@@ -63,10 +58,19 @@ def _body(opti: ca.Opti, nodes: int, start: np.ndarray):
 
 def _dynamics(opti, q, v, contacts_of):
     for k in range(q.shape[1] - 1):
-        h, com = rigid_body_momentum(q[:, k], v[:, k], MASS, INERTIA, COM)
-        h_next, _ = rigid_body_momentum(q[:, k + 1], v[:, k + 1], MASS, INERTIA, COM)
-        opti.subject_to(h_next == momentum_step(h, com, contacts_of(k, com), MASS, DT))
-        opti.subject_to(q[:, k + 1] == configuration_step(q[:, k], v[:, k + 1], DT))
+        _, com = rigid_body_momentum(q[:, k], v[:, k], MASS, INERTIA, COM)
+        rows = object_dynamics(
+            q[:, k],
+            v[:, k],
+            q[:, k + 1],
+            v[:, k + 1],
+            contacts_of(k, com),
+            mass=MASS,
+            inertia=INERTIA,
+            com=COM,
+            dt=DT,
+        )
+        opti.subject_to(rows == 0)
 
 
 def _solve(opti):
@@ -142,14 +146,14 @@ def test_friction_cone_holds_a_pull_within_mu_m_g_and_not_beyond(pull):
 
 def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
     """Box B rests on box A, which rests on the ground: the ground carries 2 m g, the
-    interface m g, and the two sides of the interface push equally and oppositely."""
+    interface m g. The interface's one wrench acts on B and, with the opposite sign, on A
+    (Newton's third law (6), as the TO's wrench shares hold it)."""
     opti = ca.Opti()
     nodes = 5
     top = float(SIZE[2])
     qa, va = _body(opti, nodes, np.zeros(6))
     qb, vb = _body(opti, nodes, np.array([0.0, 0.0, top, 0.0, 0.0, 0.0]))
     fg, tg, sg = opti.variable(3, nodes), opti.variable(3, nodes), opti.variable(1, nodes)
-    fa, ta = opti.variable(3, nodes), opti.variable(3, nodes)  # on A, from B
     fb, tb = opti.variable(3, nodes), opti.variable(3, nodes)  # on B, from A
     sab = opti.variable(3, nodes)
     top_of_a = [qa[0:3, k] + rpy_matrix(qa[3:6, k]) @ ca.DM([0, 0, top]) for k in range(nodes)]
@@ -157,7 +161,7 @@ def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
         opti,
         qa,
         va,
-        lambda k, com: [(qa[0:3, k], fg[:, k], tg[:, k]), (top_of_a[k], fa[:, k], ta[:, k])],
+        lambda k, com: [(qa[0:3, k], fg[:, k], tg[:, k]), (top_of_a[k], fb[:, k], tb[:, k], -1.0)],
     )
     _dynamics(opti, qb, vb, lambda k, com: [(qb[0:3, k], fb[:, k], tb[:, k])])
     cost = 0
@@ -173,7 +177,6 @@ def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
         opti.subject_to(
             interactive_contact(qb[0:3, k], top_of_a[k], sab[:, k], Rb, Ra, wb, wa) == 0
         )
-        opti.subject_to(newton_third_law(fa[:, k], ta[:, k], fb[:, k], tb[:, k]) == 0)
         opti.subject_to(friction_cone_cop(fb[:, k], tb[:, k], Rb, 0.8, 0.12, 0.15) >= 0)
         cost += 1e-6 * ca.sumsqr(ca.vertcat(fg[:, k], tg[:, k], fb[:, k], tb[:, k]))
         cost += 1e8 * (sg[k] ** 2 + ca.sumsqr(sab[:, k])) + 1e-1 * ca.sumsqr(
@@ -183,7 +186,26 @@ def test_interactive_contact_stacks_two_boxes_with_equal_and_opposite_forces():
     sol = _solve(opti)
     np.testing.assert_allclose(sol.value(fg)[2, :-1], 2 * MASS * 9.81, rtol=2e-3)
     np.testing.assert_allclose(sol.value(fb)[2, :-1], MASS * 9.81, rtol=2e-3)
-    np.testing.assert_allclose(sol.value(fa)[:, :-1], -sol.value(fb)[:, :-1], atol=1e-9)
+    # A feels -f_B, -tau_B at the interface: its dynamics hold with that wrench written out.
+    q_a, v_a, f_b, t_b = sol.value(qa), sol.value(va), sol.value(fb), sol.value(tb)
+    for k in range(nodes - 1):
+        top = sol.value(top_of_a[k])
+        contacts = [
+            (q_a[0:3, k], sol.value(fg)[:, k], sol.value(tg)[:, k]),
+            (top, -f_b[:, k], -t_b[:, k]),
+        ]
+        rows = object_dynamics(
+            q_a[:, k],
+            v_a[:, k],
+            q_a[:, k + 1],
+            v_a[:, k + 1],
+            contacts,
+            mass=MASS,
+            inertia=INERTIA,
+            com=COM,
+            dt=DT,
+        )
+        np.testing.assert_allclose(np.asarray(ca.DM(rows)).ravel(), 0.0, atol=1e-8)
 
 
 @pytest.mark.parametrize("bounded", [False, True])

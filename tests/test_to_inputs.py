@@ -8,14 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from locoman.artifacts import write_npz
+from locoman.config.to import ScheduleCfg
 from locoman.contact.io import CONTACTS, subtask_file
 from locoman.scene import g1
-from locoman.to.inputs import Keyframe, TOInputs, sole_points
-from locoman.to.layout import NodeLayout, ObjectModel
-from locoman.to.loading import _feet_on_object
-from locoman.to.node_parameters import node_parameters
-from locoman.to.schedule import ScheduleCfg, build_schedule
-from locoman.to.supports import Surface
+from locoman.to.problem.inputs import Keyframe, TOInputs, sole_points
+from locoman.to.problem.layout import NodeLayout
+from locoman.to.problem.loading import _feet_on_object
+from locoman.to.problem.numbers import node_parameters
+from locoman.to.problem.objects import ObjectModel
+from locoman.to.problem.schedule import build_schedule
+from locoman.to.terms.supports import Surface
 
 BOX_AT = np.array([1.5, 0.2, 0.0])  # [m] the stepped-on box's origin in the world
 OURS = np.array([[0.0, 0.12, 0.3], [0.0, -0.12, 0.3]])  # [m] object frame

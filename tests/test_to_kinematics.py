@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from locoman.scene import g1, rotations
-from locoman.to.kinematics import (
+from locoman.to.terms.kinematics import (
     SymbolicKinematics,
     euler_rates_to_world,
     pin_configuration,

@@ -1,4 +1,4 @@
-"""The numeric oracles (:mod:`locoman.to.oracles`): a one-sided penalty's far calls are
+"""The numeric oracles (:mod:`locoman.to.nlp.oracles`): a one-sided penalty's far calls are
 skipped without changing the derivatives beyond rounding, a subset of calls evaluates as
 the same calls of the whole map, and the problem function's own Jacobian is refused."""
 
@@ -10,17 +10,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from locoman.to.assembly import (
-    Block,
-    BlockNLP,
-    RowSpace,
-    Term,
-    load_derivatives,
-    parameter_vector,
-)
-from locoman.to.collision import penetration_residual
-from locoman.to.compile import SolverBuildError
-from locoman.to.oracles import Mapped, Oracles
+from locoman.errors import SolverBuildError
+from locoman.to.nlp.derivatives import load_derivatives
+from locoman.to.nlp.ipopt import BlockNLP, parameter_vector
+from locoman.to.nlp.oracles import Oracles
+from locoman.to.nlp.sparsity import Mapped
+from locoman.to.terms.collisions import penetration_residual
+from locoman.to.terms.term import Block, RowSpace, Term
 
 SOFTNESS = 0.005  # [m]
 

@@ -3,8 +3,9 @@
 resting on the floor, whose contact forces balance.
 
 Each toy is a small multiple-shooting problem written with the TO's own pieces: the rigid
-body dynamics (1) of :mod:`locoman.to.dynamics` and the kinds of :mod:`locoman.to.supports`,
-solved by IPOPT for the support wrenches (minimal in norm) and the motion.
+body dynamics (1) of :mod:`locoman.to.terms.dynamics` and the kinds of
+:mod:`locoman.to.terms.supports`, solved by IPOPT for the support wrenches (minimal in
+norm) and the motion.
 """
 
 from __future__ import annotations
@@ -14,11 +15,11 @@ import dataclasses
 import casadi as ca
 import numpy as np
 import pytest
+from to_toys import object_dynamics
 
-from locoman.to.dynamics import rigid_body_momentum, wrench_sum
-from locoman.to.kinematics import euler_rates_to_world, rpy_matrix
-from locoman.to.layout import ObjectModel
-from locoman.to.supports import (
+from locoman.to.problem.objects import ObjectModel
+from locoman.to.terms.kinematics import euler_rates_to_world, rpy_matrix
+from locoman.to.terms.supports import (
     BodyFrame,
     Chassis,
     OnObject,
@@ -110,8 +111,6 @@ def solve_toy(bodies: list[Body], nodes: int) -> dict[str, np.ndarray]:
                 continue
             q0, v0 = at(Q, k - 1, j), at(V, k - 1, j)
             obj = body.model
-            h0, c0 = rigid_body_momentum(q0, v0, obj.mass, obj.inertia, obj.com)
-            h1, _ = rigid_body_momentum(q, v, obj.mass, obj.inertia, obj.com)
             R0 = rpy_matrix(q0[3:6])
             contacts = [(q0[0:3], at(W, k - 1, j)[0:3], at(W, k - 1, j)[3:6])]
             contacts.append((q0[0:3] + R0 @ body.force_point, ca.DM(body.force), ca.DM.zeros(3)))
@@ -119,8 +118,19 @@ def solve_toy(bodies: list[Body], nodes: int) -> dict[str, np.ndarray]:
                 if getattr(rider.support, "base", None) == j:
                     wr = at(W, k - 1, r)
                     contacts.append((at(Q, k - 1, r)[0:3], -wr[0:3], -wr[3:6]))
-            eq(h1 - h0 - wrench_sum(c0, contacts, obj.mass) * DT)  # (1a)
-            eq(q - q0 - v * DT)  # (1b)
+            eq(
+                object_dynamics(
+                    q0,
+                    v0,
+                    q,
+                    v,
+                    contacts,
+                    mass=obj.mass,
+                    inertia=obj.inertia,
+                    com=obj.com,
+                    dt=DT,
+                )
+            )  # (1)
     x = ca.vertcat(ca.vec(Q), ca.vec(V), ca.vec(W), S)
     cost = 1e-4 * ca.sumsqr(W) + 1e4 * ca.sumsqr(S)
     solver = ca.nlpsol(

@@ -9,18 +9,16 @@ import time
 import numpy as np
 import pytest
 
-from locoman.config.to import SolveCfg, SolverCfg
+from locoman.config.to import KINDS, CollisionCfg, CostWeights, ScheduleCfg, SolveCfg, SolverCfg
 from locoman.errors import ConfigError
 from locoman.scene import g1
 from locoman.sim.evaluate import cone_violation, dynamics_residuals, stance_slip
-from locoman.to.collision import KINDS, CollisionCfg
-from locoman.to.costs import CostWeights
-from locoman.to.inputs import Keyframe, TOInputs
-from locoman.to.layout import ObjectModel
-from locoman.to.modes import node_modes
-from locoman.to.optimizer import TrajectoryOptimizer
-from locoman.to.schedule import ScheduleCfg, step_count, subtask_phases
-from locoman.to.supports import Chassis, OnObject, Surface
+from locoman.to.problem.inputs import Keyframe, TOInputs
+from locoman.to.problem.modes import node_modes
+from locoman.to.problem.objects import ObjectModel
+from locoman.to.problem.schedule import step_count, subtask_phases
+from locoman.to.solve.optimizer import TrajectoryOptimizer
+from locoman.to.terms.supports import Chassis, OnObject, Surface
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
 SOLE = g1.foot_sole_corners()["left_ankle_roll_link"].mean(axis=0)
@@ -253,7 +251,7 @@ def test_a_step_lands_one_foot_then_the_other_on_the_object_and_the_feet_stay_th
 
 
 def test_the_object_is_simulated_from_the_first_touch():
-    from locoman.to.schedule import Schedule
+    from locoman.to.problem.schedule import Schedule
 
     cfg = ScheduleCfg()
     schedule = Schedule.from_phases(subtask_phases("pick", 0, 0, True, cfg))
@@ -268,7 +266,7 @@ def test_the_object_is_simulated_from_the_first_touch():
 def test_a_picked_object_stays_simulated_when_set_on_one_that_joins_later():
     """S2's box: simulated from its pick on; the trolley it is set on (touched by no hand
     yet) joins the simulation when the box lands on it, not the other way round."""
-    from locoman.to.schedule import Schedule
+    from locoman.to.problem.schedule import Schedule
 
     cfg = ScheduleCfg()
     trolley = ObjectModel.box("trolley", np.array([0.8, 0.5, 0.55]), 12.0, 0.5)
@@ -344,7 +342,7 @@ def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):
 
 def test_a_schedule_too_large_is_refused_before_anything_is_built():
     """Issue 53: solve.schedule.swing_nodes=100000 ran 2 min and died with std::bad_alloc."""
-    from locoman.to.schedule import MAX_PHASE_NODES, build_schedule
+    from locoman.to.problem.schedule import MAX_PHASE_NODES, build_schedule
 
     errors = dict(ScheduleCfg(swing_nodes=100000).check())
     assert "swing_nodes" in errors and str(MAX_PHASE_NODES) in errors["swing_nodes"]
@@ -359,9 +357,9 @@ def test_a_schedule_too_large_is_refused_before_anything_is_built():
 def test_slack_max_bounds_every_free_slack_and_keeps_the_inactive_ones_at_zero():
     """``contact.slack_max_m``: |s| of (2a), (4) and the hands' contacts within the bound
     where the contact is on; where it is off the slack stays fixed at 0; None: free."""
-    from locoman.to.bounds import bounds
-    from locoman.to.layout import NodeLayout
-    from locoman.to.schedule import Schedule
+    from locoman.to.problem.layout import NodeLayout
+    from locoman.to.problem.schedule import Schedule
+    from locoman.to.solve.bounds import bounds
 
     cfg = ScheduleCfg()
     schedule = Schedule.from_phases(subtask_phases("pick", 0, 0, True, cfg))

@@ -10,20 +10,20 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from locoman.config.to import ContactCfg
+from locoman.config.to import KINDS, CollisionCfg, ContactCfg, CostWeights
+from locoman.errors import SolverBuildError
 from locoman.scene import g1
-from locoman.to.collision import KINDS, CollisionCfg, Obstacle
-from locoman.to.collision_pairs import CollisionPair, node_collision_pairs
-from locoman.to.compile import SolverBuildError
-from locoman.to.costs import CostWeights
-from locoman.to.inputs import sole_points
-from locoman.to.layout import KINEMATICS, N_KIN, NodeLayout, ObjectModel
-from locoman.to.modes import NodeMode, ObjectMode
-from locoman.to.spheres import FOREARM_LINKS, link_sphere_list
-from locoman.to.supports import Chassis, OnObject, Surface
-from locoman.to.terms import Calls, Rows, term_kind
+from locoman.to.collisions.pairs import CollisionPair, node_collision_pairs
+from locoman.to.collisions.spheres import FOREARM_LINKS, link_sphere_list
+from locoman.to.problem.inputs import sole_points
+from locoman.to.problem.layout import KINEMATICS, N_KIN, NodeLayout
+from locoman.to.problem.modes import NodeMode, ObjectMode
+from locoman.to.problem.numbers import Numbers
+from locoman.to.problem.objects import ObjectModel, Obstacle
 from locoman.to.terms.library import g1_terms
-from locoman.to.transcription import Numbers, Transcription, transcribe
+from locoman.to.terms.supports import Chassis, OnObject, Surface
+from locoman.to.terms.term import Calls, Rows, term_kind
+from locoman.to.transcription.transcribe import Transcription, transcribe
 
 BOX = ObjectModel.box("box", np.array([0.25, 0.3, 0.2]), 2.0, 0.8)
 NO_SELF = CollisionCfg(self_pairs=[])
@@ -239,7 +239,7 @@ def test_the_object_mass_enters_its_dynamics():
     carry = NodeMode((True, True), (0, 0), (ObjectMode(True, None),))
     light = _transcription([carry, carry], (BOX,))
     heavy = _transcription([carry, carry], (dataclasses.replace(BOX, mass=5.0),))
-    from locoman.to.assembly import structure_key
+    from locoman.to.nlp.ipopt import structure_key
 
     n_x = 2 * light.layout.width
     assert structure_key(n_x, light.blocks) == structure_key(n_x, heavy.blocks)
@@ -472,7 +472,7 @@ def test_a_pair_between_two_nodes_sees_the_spheres_at_the_configuration_there():
     """Issue 48: the replay between two nodes is linear in q; a pair there takes the link's
     spheres where that configuration puts them (virtual variables of their own), not the
     chord of their centres at the two nodes."""
-    from locoman.to.spheres import link_sphere_list
+    from locoman.to.collisions.spheres import link_sphere_list
 
     knee = link_sphere_list("left_knee_link")[2]
     table = {"centre": np.array([0.6, 0.0, 0.36]), "yaw": 0.0, "half": np.array([0.3, 0.4, 0.36])}

@@ -27,7 +27,7 @@ class RetargetCfg:
         fallback_palm_facing_weight: That round's pull of each palm's normal into its
             contact surface [-].
         base_tilt_max_rad: A keyframe's base roll and pitch at most this, below the TO's
-            bound on them (``locoman.to.bounds.BASE_TILT_MAX``, short of the roll-pitch-yaw
+            bound on them (``locoman.to.solve.bounds.BASE_TILT_MAX``, short of the roll-pitch-yaw
             singularity at pi/2); a start that ends more tilted ranks after every other
             [rad].
         regularization: placo's damping of each step [-].

@@ -25,9 +25,8 @@ from __future__ import annotations
 import dataclasses
 import itertools
 
-from locoman.config.to import SolveCfg, scenario_solve
+from locoman.config.to import KINDS, SolveCfg, scenario_solve
 from locoman.errors import ConfigError
-from locoman.to.collision import KINDS
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The actions a humanoid subtask can be, and how a prompt's verb names one.
 
 Paper A describes a task as subtasks in words ("pick up the box from the table"). The TO
-knows six contact schedules (:mod:`locoman.to.schedule`); a subtask is one of them, its
+knows six contact schedules (:mod:`locoman.to.problem.schedule`); a subtask is one of them, its
 *action*. A scenario may say it (``plan[i].action``); where it does not, the prompt's verb
 decides through :data:`SYNONYMS` (a phrasal verb, "drop off", before its first word). Both
 are resolved once, when the configuration is checked, so a word the table lacks stops the

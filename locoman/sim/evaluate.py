@@ -30,10 +30,10 @@ import pinocchio as pin
 from locoman.scene import g1
 from locoman.scene.plan_state import AS_BUILT, top_face, world_pose
 from locoman.scene.rotations import rpy_to_matrix
-from locoman.to.kinematics import pin_configuration, pin_velocity
-from locoman.to.layout import ObjectModel
+from locoman.to.problem.objects import ObjectModel
+from locoman.to.terms.dynamics import GRAVITY
+from locoman.to.terms.kinematics import pin_configuration, pin_velocity
 
-GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2]
 ROBOT = "robot"  # the G1's side of a pair of bodies
 
 
@@ -135,7 +135,7 @@ def _rigid_body_momentum(obj: ObjectModel, qo: np.ndarray, vo: np.ndarray) -> tu
 
 def _rate(mass: float, com: np.ndarray, contacts: list[tuple]) -> np.ndarray:
     """(6,) gravity plus each (point, force, moment) contact, about ``com``."""
-    force, moment = mass * GRAVITY, np.zeros(3)
+    force, moment = mass * np.asarray(GRAVITY), np.zeros(3)
     for r, f, tau in contacts:
         force = force + f
         moment = moment + np.cross(r - com, f) + tau

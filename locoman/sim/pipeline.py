@@ -51,7 +51,7 @@ from locoman.sim.evaluate import (
 from locoman.sim.media import media_quality
 from locoman.sim.penetration import CLASSES, HEADLINE, Penetrations, penetrations
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
-from locoman.to.layout import ObjectModel
+from locoman.to.problem.objects import ObjectModel
 
 TILE = 320
 VIDEO_FILE = "motion.mp4"

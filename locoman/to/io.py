@@ -19,7 +19,10 @@ from __future__ import annotations
 from locoman.artifacts import ArtifactSchema, Field
 
 TRAJECTORY_FILE = "trajectory.npz"
+
+
 MCAP_FILE = "trajectory.mcap"
+
 
 TRAJECTORY = ArtifactSchema(
     "to.trajectory",

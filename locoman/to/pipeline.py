@@ -19,13 +19,14 @@ from locoman.scene.io import load_scene_model, load_state
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.sim.audit import ClosePair
 from locoman.sim.foxglove import scene_entities
-from locoman.to.compile import cache_dir
-from locoman.to.inputs import TOInputs
 from locoman.to.io import MCAP_FILE, TRAJECTORY, TRAJECTORY_FILE
-from locoman.to.loading import load_inputs
-from locoman.to.optimizer import Trajectory, TrajectoryOptimizer
-from locoman.to.pair_search import Round, search, solution_scene
-from locoman.to.schedule import Schedule
+from locoman.to.nlp.compile import cache_dir
+from locoman.to.problem.inputs import TOInputs
+from locoman.to.problem.loading import load_inputs
+from locoman.to.problem.schedule import Schedule
+from locoman.to.rounds.search import Round, search, solution_scene
+from locoman.to.solve.optimizer import TrajectoryOptimizer
+from locoman.to.solve.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
 

@@ -1,5 +1,25 @@
-"""The collision terms of paper A, Sec. IV-D, as term kinds: one per pair geometry and
-treatment, each evaluated over a list of pairs that is data (:mod:`locoman.to.collision`
+"""Collision avoidance of paper A, Sec. IV-D: the scaled penetration (11) and its penalty (12).
+
+The paper scales a point's distance d from the centroid of the penetrated body, an
+ellipsoid, and asks p = d^2 - 1 >= 0 (11). The G1's links are chains of spheres (their
+MuJoCo collision capsules, as placo uses them), and two spheres are kept apart by (11) in the
+box pairs' units below, p = (|c_a - c_b| - r_a - r_b - margin) / L: d^2 - 1's gradient
+vanishes when the centres meet, so a deep pair was hardly pushed out.
+
+Boxes (a table, the carried box) are poorly covered by ellipsoids: enclosing the table puts
+its own load inside, inscribing it misses the corners, and a superquadric norm errs by a
+fraction of each half size, centimetres on a table's height. For a box we scale a smooth
+clearance instead, c(x) ~ max_i (|x_i| - a_i), the box's signed distance on its faces
+(log-sum-exp with a few millimetres of smoothing): a sphere of radius r is outside when
+c >= r + margin, and p = (c - r - margin) / L takes the place of (11)'s d^2 - 1, with one
+length L for every pair, so that a centimetre costs the same everywhere.
+
+Which pairs are checked, and how, is configuration (:class:`CollisionCfg`): the paper adds
+a minimal set per scenario, since every pair makes the problem less convex, and treats each
+kind either with the penalty (12) or as the hard constraint (11), p >= 0 (S2's knees).
+
+The collision terms of paper A, Sec. IV-D, as term kinds: one per pair geometry and
+treatment, each evaluated over a list of pairs that is data (:mod:`locoman.to.terms.collisions`
 holds the geometry).
 
 Geometries (what is kept out of what):
@@ -14,7 +34,7 @@ Geometries (what is kept out of what):
 - ``object_point_object_box``: a point fixed in one moving object (a carried box's corner)
   and a box fixed in another (a trolley's chassis).
 
-Treatments (:data:`locoman.to.collision.TREATMENTS`): ``penalty`` (12), a residual
+Treatments (:data:`locoman.config.to.TREATMENTS`): ``penalty`` (12), a residual
 sqrt(w) min(p, 0) smoothed; ``constraint`` (11), p >= 0; ``homotopy`` (13a),
 alpha p~ + (1 - alpha) p >= 0 from the box's smooth stand-in p~, with (13b)'s
 sqrt(w_hom) alpha once per node (:func:`homotopy_weight_kind`).
@@ -26,20 +46,90 @@ import functools
 from types import SimpleNamespace
 
 import casadi as ca
+import numpy as np
 
-from locoman.to.collision import (
-    penetration_residual,
-    sphere_box_penetration,
-    sphere_ellipsoid_penetration,
-    sphere_sphere_penetration,
-)
-from locoman.to.kinematics import rot_z, rpy_matrix
-from locoman.to.terms import Rows, TermKind, term_kind
+from locoman.to.terms.kinematics import rot_z, rpy_matrix
+from locoman.to.terms.term import Rows, TermKind, term_kind
+
+
+def column(x) -> ca.SX | ca.DM:
+    """A CasADi column of numbers (DM) or of an expression (unchanged)."""
+    return x if isinstance(x, ca.SX | ca.MX) else ca.DM(np.asarray(x, dtype=float).ravel())
+
+
+def box_clearance(
+    point: ca.SX, centre: ca.SX, R: ca.SX, half_extents: ca.SX, smoothing: ca.SX
+) -> ca.SX:
+    """Smooth signed clearance [m] of ``point`` from a box (centre, axes R, half extents):
+    tau ln sum_i exp((|x_i| - a_i) / tau), x = R^T (point - centre), |.| smoothed over 1 mm.
+    Negative inside; on the faces the signed distance, up to tau ln 3."""
+    local = R.T @ (point - centre)
+    excess = ca.sqrt(local**2 + 1e-6) - column(half_extents)
+    return smoothing * ca.logsumexp(excess / smoothing)
+
+
+def sphere_box_penetration(
+    centre_sphere: ca.SX,
+    radius: float,
+    box_centre: ca.SX,
+    R: ca.SX,
+    half: ca.SX,
+    cfg,
+    margin: ca.SX | float | None = None,
+) -> ca.SX:
+    """(11) for a sphere (radius 0: a point) and a box: p = (c - r - margin) / L, c the
+    clearance of its centre; ``margin`` [m] in place of ``cfg.margin_m``."""
+    clearance = box_clearance(centre_sphere, box_centre, R, half, cfg.smoothing_m)
+    margin = cfg.margin_m if margin is None else margin
+    return (clearance - radius - margin) / cfg.length_m
+
+
+def sphere_ellipsoid_penetration(
+    centre_sphere: ca.SX, radius: float, box_centre: ca.SX, R: ca.SX, half: ca.SX, cfg
+) -> ca.SX:
+    """(11) for a sphere against the smooth stand-in of a box, the ellipsoid inscribed in
+    it (semi-axes a_i, grown by r + margin): p~ = d^2 - 1, d the sphere centre's scaled
+    distance from the box's centre. It touches the box's faces at their centres and cuts
+    its corners: a guide, which the box replaces as alpha goes to zero. (The ellipsoid
+    through the corners, sqrt(3) a_i, held S2's hips away from the box they carry; from
+    there the solve diverged, cost 4e6 after 150 iterations.)"""
+    x = R.T @ (centre_sphere - box_centre)
+    return ca.sumsqr(x / (half + radius + cfg.margin_m)) - 1.0
+
+
+def sphere_sphere_penetration(
+    a: ca.SX, b: ca.SX, radius: ca.SX | float, length: ca.SX | float
+) -> ca.SX:
+    """(11) of two spheres whose radii (and margin) sum to ``radius`` [m], in the box pairs'
+    units: p = (|a - b| - radius) / L, L = ``length`` [m] (|.| smoothed over 1 mm).
+
+    The paper's d^2 - 1, d = |a - b| / radius, saturates at -1 as the centres meet, and its
+    gradient 2 d grad d vanishes there, so (12) hardly pushed a deep pair out: S2's Foot cell
+    at 2.5 kg, 0.6 rad ended its first solve with a wrist 123 mm in the torso and took 2 153
+    iterations to converge, failing a check; with this p, whose gradient keeps its size at
+    any depth, 236 iterations and every check passed (docs/performance.md)."""
+    return (ca.sqrt(ca.sumsqr(a - b) + 1e-6) - radius) / length
+
+
+def penetration_residual(p: ca.SX, softness: float) -> ca.SX:
+    """The residual r of (12), whose square is the penalty: min(p, 0) smoothed over
+    ``softness`` (-softness ln(1 + exp(-p / softness)), written so that it cannot overflow).
+
+    The paper's p^2 for p < 0 is only once differentiable; with it IPOPT reached the
+    optimum of ``tiny`` at 69 nodes by iteration 160 and then cycled between a penalty's
+    active and inactive sides for 770 more. Smoothed, r and its Gauss-Newton curvature turn
+    on before contact; for |p| >> softness r is min(p, 0), and at p = 0 it is -softness ln 2.
+    """
+    return ca.fmin(p, 0.0) - softness * ca.log1p(ca.exp(-ca.fabs(p) / softness))
+
 
 # The numbers of a box clearance (:func:`sphere_box_penetration`): margin [m] (a touching
 # pair's is the least), log-sum-exp smoothing [m], length L [m].
 BOX_NUMBERS = {"margin": 1, "smoothing": 1, "length": 1}
+
+
 PENALTY_NUMBERS = {"weight": 1, "softness": 1}
+
 
 # geometry -> (x slots, p slots); ``c``: a robot sphere's lifted centre.
 GEOMETRIES: dict[str, tuple[dict[str, int], dict[str, int]]] = {

@@ -1,4 +1,9 @@
-"""The costs of paper A as term kinds, written with :mod:`locoman.to.costs`: L_st and L_wk
+"""Stagewise costs of paper A, Table I, and the keyframe costs (9) and (10).
+
+Every cost is a weighted squared norm, w ||.||^2. The weights are the paper's; each is a
+field, so an ablation is a parameter change.
+
+The costs of paper A as term kinds, written with :mod:`locoman.to.terms.costs`: L_st and L_wk
 of Table I by the node's contact mode, L_reg, the slacks' L_slack, the keyframe costs (9)
 and (10), and ours, an object's goal and uprightness. Weights and references are inputs
 ``p``, so one compiled kind serves every weight, node and scenario; a switched-off cost is a
@@ -12,22 +17,127 @@ import functools
 
 import casadi as ca
 
-from locoman.to.costs import (
-    CostWeights,
-    keyframe_base_cost,
-    keyframe_foot_cost,
-    object_goal_cost,
-    regularization_cost,
-    stance_cost,
-    walking_cost,
+from locoman.config.to import CostWeights
+from locoman.scene.g1 import G1_JOINT_NAMES, STANDING_JOINTS
+from locoman.to.problem.layout import NQ
+from locoman.to.terms.dynamics import rigid_body_momentum
+from locoman.to.terms.kinematics import euler_rates_to_world
+from locoman.to.terms.term import Rows, TermKind, term_kind
+
+LEGS = tuple(
+    k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("hip", "knee", "ankle"))
 )
-from locoman.to.dynamics import rigid_body_momentum
-from locoman.to.kinematics import euler_rates_to_world
-from locoman.to.layout import NQ
-from locoman.to.terms import Rows, TermKind, term_kind
+
+
+ARMS = tuple(
+    k
+    for k, n in enumerate(G1_JOINT_NAMES)
+    if any(p in n for p in ("waist", "shoulder", "elbow", "wrist"))
+)
+
+
+# The arms' nominal angles: the G1's standing posture (elbows bent, hands off the hips).
+# Table I regularises q_arm without naming a reference; at zero the G1's elbow capsules
+# sit in its pelvis. The paper's legs and arms leave out the G1's three waist joints; they
+# count as arm joints here: unregularised, the waist twisted by up to 2.5 rad while the
+# robot walked and swung the hands through the hips.
+ARM_NOMINAL = [STANDING_JOINTS.get(G1_JOINT_NAMES[k], 0.0) for k in ARMS]
+
+
+def _joint(name: str) -> int:
+    return 6 + G1_JOINT_NAMES.index(name)
+
+
+def _hip(side: str, axis: str) -> int:
+    return _joint(f"{side}_hip_{axis}_joint")
+
+
+def stance_cost(
+    w: CostWeights,
+    q: ca.SX,
+    com: ca.SX,
+    r_lf: ca.SX,
+    r_rf: ca.SX,
+    R_lf: ca.SX,
+    R_rf: ca.SX,
+    yaw_ref: ca.SX | float = 0.0,
+) -> ca.SX:
+    """L_st of Table I: both feet down. ``com`` is c_all, the CoM of the robot and what it
+    carries [m]."""
+    legs = ca.vertcat(
+        q[_joint("left_hip_pitch_joint")] - q[_joint("right_hip_pitch_joint")],
+        q[_joint("left_hip_roll_joint")],
+        q[_joint("right_hip_roll_joint")],
+        q[_joint("left_hip_yaw_joint")] + q[_joint("right_hip_yaw_joint")],
+        q[_joint("left_knee_joint")] - q[_joint("right_knee_joint")],
+    )
+    return (
+        w.com_over_feet * ca.sumsqr(com[0:2] - 0.5 * (r_lf[0:2] + r_rf[0:2]))
+        + w.leg_symmetry * ca.sumsqr(legs)
+        + w.foot_yaw_symmetry * ca.sumsqr(R_lf[:, 0] - R_rf[:, 0])
+        + w.base_pose_stance * (q[4] ** 2 + (q[5] - yaw_ref) ** 2)
+    )
+
+
+def walking_cost(
+    w: CostWeights, q: ca.SX, swing_height: ca.SX | None, yaw_ref: ca.SX | float = 0.0
+) -> ca.SX:
+    """L_wk of Table I: one foot in the air, ``swing_height`` [m] above its surface (the
+    one it left, or, stepping up, the top it lands on; None: no swing foot)."""
+    roll = ca.vertcat(q[_hip("left", "roll")], q[_hip("right", "roll")])
+    cost = w.leg_roll * ca.sumsqr(roll) + w.base_pose_walking * (q[4] ** 2 + (q[5] - yaw_ref) ** 2)
+    if swing_height is not None:
+        cost += w.foot_clearance * (swing_height - w.clearance_m) ** 2
+    return cost
+
+
+def regularization_cost(
+    w: CostWeights,
+    q: ca.SX,
+    v: ca.SX,
+    wrench: ca.SX,
+    base_omega: ca.SX,
+    dt: ca.SX,
+    ground: ca.SX | float = 0.0,
+) -> ca.SX:
+    """L_reg of Table I; the base height is taken over ``ground`` [m], the surface the
+    feet stand on."""
+    legs = [6 + k for k in LEGS]
+    arms = [6 + k for k in ARMS]
+    return (
+        w.force * ca.sumsqr(wrench)
+        + w.base_linear_velocity * ca.sumsqr(v[0:3])
+        + w.base_angular_velocity * ca.sumsqr(base_omega)
+        + w.leg_velocity * ca.sumsqr(v[legs])
+        + w.arm_velocity * ca.sumsqr(v[arms])
+        + w.arm_angle * ca.sumsqr(q[arms] - ca.DM(ARM_NOMINAL))
+        + w.base_height * (q[2] - ground - w.base_height_m) ** 2
+        + w.timestep * (dt - w.timestep_s) ** 2
+    )
+
+
+def keyframe_base_cost(w: CostWeights, q: ca.SX, q_keyframe: ca.SX) -> ca.SX:
+    """(9): the base height and orientation of a keyframe."""
+    height, orientation = w.keyframe_base
+    return height * (q[2] - q_keyframe[2]) ** 2 + orientation * ca.sumsqr(q[3:6] - q_keyframe[3:6])
+
+
+def object_goal_cost(w: CostWeights, q_object: ca.SX, goal: ca.SX) -> ca.SX:
+    """The object at its target: position xy [m] and yaw [rad] (goal = (x, y, yaw))."""
+    return w.object_goal * (ca.sumsqr(q_object[0:2] - goal[0:2]) + (q_object[5] - goal[2]) ** 2)
+
+
+def keyframe_foot_cost(w: CostWeights, r_lf: ca.SX, r_rf: ca.SX, r_des: ca.SX) -> ca.SX:
+    """(10): the feet's midpoint at the keyframe's."""
+    return w.keyframe_foot * ca.sumsqr(0.5 * (r_lf[0:2] + r_rf[0:2]) - r_des[0:2])
+
 
 STANCE_WEIGHTS = ("com_over_feet", "leg_symmetry", "foot_yaw_symmetry", "base_pose_stance")
+
+
 WALKING_WEIGHTS = ("leg_roll", "base_pose_walking", "foot_clearance", "clearance_m")
+
+
 REGULARIZATION_WEIGHTS = (
     "force",
     "base_linear_velocity",

@@ -1,4 +1,14 @@
-"""The dynamics (1) of every body, semi-implicit Euler over a step k -> k + 1:
+"""Centroidal dynamics, discretised by semi-implicit Euler (paper A, eq. (1)).
+
+    h+ = h- + [m g + sum_i f_i ; sum_i (r_i - c) x f_i + tau_i] dt          (1a)
+    q+ = q- + v+ dt                                                           (1b)
+
+h = (linear momentum [kg m/s], angular momentum about the CoM [kg m^2/s]) in world axes,
+f_i, tau_i the force [N] and moment [N m] at contact point r_i [m], c the CoM [m]. Objects
+obey the same equations as rigid bodies (:func:`rigid_body_momentum`). Every function takes
+and returns CasADi expressions, so the same code builds the NLP and evaluates a solution.
+
+The dynamics (1) of every body, semi-implicit Euler over a step k -> k + 1:
 
     h+ - h- - [m g + sum_i f_i ; sum_i (r_i - c) x f_i + tau_i] dt = 0      (1a)
     q+ - q- - v+ dt = 0                                                     (1b)
@@ -17,10 +27,25 @@ import functools
 
 import casadi as ca
 
-from locoman.to.dynamics import GRAVITY, rigid_body_momentum
-from locoman.to.kinematics import rpy_matrix
-from locoman.to.layout import NQ
-from locoman.to.terms import Rows, TermKind, term_kind
+from locoman.to.problem.layout import NQ
+from locoman.to.terms.kinematics import euler_rates_to_world, rpy_matrix
+from locoman.to.terms.term import Rows, TermKind, term_kind
+
+STANDARD_GRAVITY = 9.81  # g [m/s^2]
+GRAVITY = (0.0, 0.0, -STANDARD_GRAVITY)  # the gravity vector, world z up [m/s^2]
+
+
+def rigid_body_momentum(
+    q: ca.SX, v: ca.SX, mass: float, inertia: ca.DM, com_local: ca.DM
+) -> tuple[ca.SX, ca.SX]:
+    """Centroidal momentum (6,) and CoM (3,) [m] of a rigid body with configuration
+    q = (p, rpy) and rate v = (p_dot, rpy_dot); ``inertia`` (3, 3) [kg m^2] about the CoM
+    in body axes, ``com_local`` (3,) [m] the CoM in the body frame."""
+    R = rpy_matrix(q[3:6])
+    omega = euler_rates_to_world(q[3:6]) @ v[3:6]
+    com = q[0:3] + R @ com_local
+    v_com = v[0:3] + ca.cross(omega, R @ com_local)
+    return ca.vertcat(mass * v_com, R @ inertia @ R.T @ omega), com
 
 
 @functools.cache

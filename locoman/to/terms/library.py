@@ -8,15 +8,16 @@ treatment afterwards compiles nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
-from locoman.retarget.robot import contact_frames
+from locoman.config.to import TREATMENTS
+from locoman.retarget.robot import ContactFrames, contact_frames
 from locoman.scene import g1
-from locoman.to.collision import TREATMENTS, link_spheres
-from locoman.to.kinematics import SymbolicKinematics
-from locoman.to.layout import BODY_POINTS
-from locoman.to.supports import SUPPORT_KINDS
-from locoman.to.terms import TermKind
+from locoman.to.collisions.spheres import link_spheres
+from locoman.to.problem.layout import (
+    BODY_POINTS,
+)
 from locoman.to.terms.collisions import GEOMETRIES, collision_kind, homotopy_weight_kind
 from locoman.to.terms.contacts import (
     ONSETS,
@@ -42,14 +43,29 @@ from locoman.to.terms.dynamics import (
     wrench_kind,
 )
 from locoman.to.terms.kinematics import (
+    SymbolicKinematics,
     kinematics_kind,
     link_point_between_kind,
     link_point_kind,
     link_spheres_between_kind,
     link_spheres_kind,
 )
-from locoman.to.terms.supports import support_contact_kind, support_wrench_kind
-from locoman.to.transcription import RobotTerms
+from locoman.to.terms.supports import SUPPORT_KINDS, support_contact_kind, support_wrench_kind
+from locoman.to.terms.term import TermKind
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotTerms:
+    """The robot-specific term kinds: its kinematics, its links' capsule spheres and points
+    fixed to its links."""
+
+    kinematics: TermKind
+    link_spheres: dict[str, TermKind]
+    link_points: dict[str, TermKind]
+    link_spheres_between: dict[str, TermKind]
+    link_points_between: dict[str, TermKind]
+    mass: float  # [kg]
+    frames: ContactFrames
 
 
 def collision_links() -> tuple[str, ...]:
