@@ -33,7 +33,7 @@ from locoman.sim.audit import close_pairs
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 from locoman.to.pipeline import build_optimizer
 from locoman.to.problem.loading import load_inputs
-from locoman.to.rounds.found_pairs import Check, Scene, round_pairs, unmodelled
+from locoman.to.rounds.found_pairs import Check, SolutionScene, round_pairs, unmodelled
 from locoman.to.rounds.search import solution_scene
 from locoman.to.solve.trajectory import Trajectory
 
@@ -49,7 +49,7 @@ def committed_solution(scenario: str) -> Trajectory:
     return Trajectory(**fields | {k: v for k, v in arrays.items() if k in fields})
 
 
-def check_once(optimizer, model, scene: Scene, cfg) -> dict:
+def check_once(optimizer, model, scene: SolutionScene, cfg) -> dict:
     """One check: its pieces' wall and CPU seconds and what it found."""
     # Fresh pair objects, as a first round meets them: their identities not made yet.
     pairs = [dataclasses.replace(p) for p in optimizer.transcription.pairs]

@@ -23,7 +23,7 @@ from locoman.to.rounds.found_pairs import (
     PROMOTED,
     WRIST_LINKS,
     Check,
-    Scene,
+    SolutionScene,
     arm_nodes,
     arm_pairs,
     found_pairs,
@@ -132,12 +132,12 @@ def test_the_arm_in_the_torso_is_found_and_mapped_to_sphere_pairs(scene):
     assert all(p.kind == "found" and p.node == 2 for p in pair)
 
 
-def _box_by_the_table(scene) -> Scene:
+def _box_by_the_table(scene) -> SolutionScene:
     """The scene's box on its table, at every node, with the fixed objects."""
     _, objects = scene
     box = ObjectModel.from_spec("box", objects["box"])
     obstacles = {o.name: o for o in obstacles_from_objects(objects)}
-    return Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
+    return SolutionScene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), obstacles, contact_frames())
 
 
 KNEE = Body("robot", "left_knee_link", "left_knee_link#7")
@@ -205,7 +205,7 @@ def test_an_object_against_another_keeps_its_edges_and_the_others_rim_out(scene)
     other = ObjectModel.from_spec("crate", objects["box"] | {"kind": "box"})
     lifted = BOX_ON_TABLE + np.array([0.0, 0.0, 0.15, 0, 0, 0])
     poses = np.tile(np.stack([BOX_ON_TABLE, lifted]), (NODES, 1, 1))
-    scene_ = Scene((box, other), poses, {}, contact_frames())
+    scene_ = SolutionScene((box, other), poses, {}, contact_frames())
     close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
     pairs = pairs_for(close, 2, scene_)
     assert {p.geometry for p in pairs} == {"object_point_object_box"}
@@ -274,7 +274,7 @@ def test_pairs_with_the_same_label_against_another_box_are_not_the_same(scene):
     joined once the platform's had: a pair is its geometry and numbers, not its label."""
     _, objects = scene
     box = ObjectModel.from_spec("box", objects["box"])
-    scene_ = Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames())
+    scene_ = SolutionScene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames())
     hand = Body("robot", "right_rubber_hand", "right_rubber_hand#64")
     close = _close(hand, Body("object", "box", "box/body"))
     pairs = found_pairs(Check([close], scene_), [])
@@ -325,7 +325,8 @@ def test_a_pair_no_round_frees_ends_the_search_unfreed_naming_it(scene):
     scene_ = dataclasses.replace(_box_by_the_table(scene), object_q=sunk[:, None, :])
     stuck = _Stuck()
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
-    _, rounds, missing, unfreed = search(stuck, _solved(_trajectory(sunk)), model, scene_, cfg)
+    found = search(stuck, _solved(_trajectory(sunk)), model, scene_, cfg)
+    rounds, missing, unfreed = found.rounds, found.missing, found.unfreed
     assert [r.pairs_added > 0 for r in rounds] == [True, True, False]
     assert len(stuck.pairs) == 2 and stuck.pairs[0] < stuck.pairs[1]
     assert missing == []  # every pair it needs is there
@@ -343,7 +344,8 @@ def test_pairs_no_round_frees_are_solved_again_from_the_guess_with_every_pair(sc
     freed = _solved(_trajectory(np.tile(BOX_ON_TABLE, (NODES, 1))))
     solver = _Stuck(guess=freed)
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=1)
-    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    traj, rounds, missing, unfreed = found.trajectory, found.rounds, found.missing, found.unfreed
     assert solver.restarts == [max(solver.pairs[:-1])]  # once, with every pair found
     assert [r.restart for r in rounds] == [False, False, False, True, False]
     assert traj is not first and traj.success and missing == [] and unfreed == []
@@ -355,7 +357,8 @@ def test_restarts_are_bounded_and_a_pair_they_cannot_free_stays_named(scene):
     model, scene_, first = _sunk_box(scene)
     solver = _Stuck(guess=first)
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=2)
-    _, rounds, _, unfreed = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    rounds, unfreed = found.rounds, found.unfreed
     assert len(solver.restarts) == 2 and sum(r.restart for r in rounds) == 2
     assert {frozenset(c.label.split(" | ")) for c in unfreed} == {
         frozenset({"box/body", "table/top"})
@@ -399,12 +402,14 @@ def test_a_round_that_fails_with_promoted_pairs_is_solved_again_without_them(sce
     model, scene_, first = _sunk_box(scene)
     solver = _FailsWith(_with_promotions)
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
-    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    traj, rounds, missing, unfreed = found.trajectory, found.rounds, found.missing, found.unfreed
     assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True, False]
     assert solver.pairs[0] == solver.pairs[2] < solver.pairs[1]
     assert [r.demoted > 0 for r in rounds] == [False, True, False]
     assert [r.status for r in rounds[:2]] == ["Solve_Succeeded"] * 2
-    assert traj.success and missing == [] and unfreed
+    assert missing == [] and unfreed
+    assert not traj.success and traj.status == "Collision_Pairs_Unfreed"
 
 
 def test_a_round_out_of_iterations_with_promoted_pairs_is_not_solved_again(scene):
@@ -413,7 +418,8 @@ def test_a_round_out_of_iterations_with_promoted_pairs_is_not_solved_again(scene
     model, scene_, first = _sunk_box(scene)
     solver = _FailsWith(_with_promotions, "Maximum_Iterations_Exceeded")
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
-    traj, rounds, _, _ = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    traj, rounds = found.trajectory, found.rounds
     assert [PROMOTED in kinds for kinds in solver.kinds] == [False, True]
     assert [r.status for r in rounds] == ["Solve_Succeeded", "Maximum_Iterations_Exceeded"]
     assert [r.demoted for r in rounds] == [0, 0]
@@ -426,7 +432,8 @@ def test_a_round_that_fails_ends_the_search_with_its_failure(scene):
     model, scene_, first = _sunk_box(scene)
     solver = _FailsWith(lambda calls, _: calls == 1)
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=0)
-    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    traj, rounds, missing, unfreed = found.trajectory, found.rounds, found.missing, found.unfreed
     assert len(solver.pairs) == 1 and len(rounds) == 1
     assert not traj.success and traj.status == "Infeasible_Problem_Detected"
     assert rounds[0].status == "Infeasible_Problem_Detected" and rounds[0].demoted == 0
@@ -441,7 +448,8 @@ def test_a_round_that_fails_restarts_from_the_guess_with_every_pair(scene):
     solver = _FailsWith(lambda calls, _: calls == 1, "Maximum_Iterations_Exceeded")
     solver.guess = _solved(_trajectory(np.tile(BOX_ON_TABLE, (NODES, 1))))
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=1)
-    traj, rounds, missing, unfreed = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    traj, rounds, missing, unfreed = found.trajectory, found.rounds, found.missing, found.unfreed
     assert solver.restarts == solver.pairs[:1]  # the failed round's pairs, all of them
     assert [r.restart for r in rounds] == [False, True, False, False]  # then promotes
     assert [r.status for r in rounds[:3]] == [
@@ -459,7 +467,8 @@ def test_a_restart_that_fails_ends_the_search_with_its_failure(scene):
     solver = _FailsWith(lambda calls, _: True, "Maximum_Iterations_Exceeded")
     solver.guess = first
     cfg = dataclasses.replace(CollisionCfg(), rounds=4, restarts=2)
-    traj, rounds, _, _ = search(solver, first, model, scene_, cfg)
+    found = search(solver, first, model, scene_, cfg)
+    traj, rounds = found.trajectory, found.rounds
     assert len(solver.restarts) == 1 and [r.restart for r in rounds] == [False, True]
     assert not traj.success and traj.status == "Maximum_Iterations_Exceeded"
 
@@ -478,12 +487,12 @@ def test_no_pair_where_the_schedule_lets_the_bodies_touch(scene):
         "support_base": np.array([[-1, -1]] * 3 + [[1, -1]]),
         "object_active": np.ones((NODES, 2), bool),
     }
-    scene_ = Scene((box, other), poses, {}, contact_frames(), schedule)
+    scene_ = SolutionScene((box, other), poses, {}, contact_frames(), schedule)
     close = _close(Body("object", "box", "box/body"), Body("object", "crate", "crate/body"))
     assert {p.node for p in found_pairs(Check([close], scene_), [])} == {1, 2}  # not 3
 
 
-def _open_box(scene, hand_object: np.ndarray) -> Scene:
+def _open_box(scene, hand_object: np.ndarray) -> SolutionScene:
     """tiny's box as an open one of two parts (a floor and a wall) on its table, the left
     hand's contact per node ``hand_object`` (N,), the right hand's none."""
     _, objects = scene
@@ -495,7 +504,9 @@ def _open_box(scene, hand_object: np.ndarray) -> Scene:
     box = ObjectModel.from_spec("box", spec)
     schedule = _trajectory(np.tile(BOX_ON_TABLE, (NODES, 1)))
     schedule["hand_object"][:, 0] = hand_object
-    return Scene((box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames(), schedule)
+    return SolutionScene(
+        (box,), np.tile(BOX_ON_TABLE, (NODES, 1, 1)), {}, contact_frames(), schedule
+    )
 
 
 def test_a_restart_keeps_both_arms_out_of_the_object_whole(scene):
@@ -569,7 +580,8 @@ def test_a_restart_solves_with_the_found_arm_whole(scene, around):
     first = _solved(_trajectory(np.tile(BOX_ON_TABLE, (NODES, 1)), "surface", q))
     solver = _Kept(guess=first)
     cfg = dataclasses.replace(CollisionCfg(), rounds=2, restarts=1, restart_arm_nodes=around)
-    _, rounds, _, unfreed = search(solver, first, model, _box_by_the_table(scene), cfg)
+    found = search(solver, first, model, _box_by_the_table(scene), cfg)
+    rounds, unfreed = found.rounds, found.unfreed
     restart = next(r for r in rounds if r.restart)
     links = {p.sphere.link for p in solver.restart_pairs[0] if "table" in p.label}
     assert "right_rubber_hand" in links and unfreed

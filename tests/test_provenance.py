@@ -59,7 +59,7 @@ def test_a_grid_stamped_at_this_checkout_is_at_its_code(checkout, tmp_path):
 def test_a_changed_source_or_parameter_is_named(checkout, tmp_path):
     folder = _grid(tmp_path)
     stamp(folder, "tiny", "fig6", "", checkout)
-    with (checkout / "locoman" / "to" / "schedule.py").open("a") as f:
+    with (checkout / "locoman" / "to" / "problem" / "schedule.py").open("a") as f:
         f.write("\n# a change\n")
     (checkout / "locoman" / "sim" / "pipeline.py").write_text(
         (checkout / "locoman" / "sim" / "pipeline.py").read_text() + "\n# another\n"
@@ -69,7 +69,7 @@ def test_a_changed_source_or_parameter_is_named(checkout, tmp_path):
     params["solve"]["solver"]["print_level"] = 5  # how loud a solve is: no result of it
     (checkout / "params.yaml").write_text(yaml.safe_dump(params))
     changes = status(folder, checkout)
-    assert "solve code: locoman/to/schedule.py changed" in changes
+    assert "solve code: locoman/to/problem/schedule.py changed" in changes
     assert "evaluation code: locoman/sim/pipeline.py changed" in changes
     assert any(c.startswith("parameter solve.contact.slack_max_m: ") for c in changes)
     assert not any("print_level" in c for c in changes)
@@ -80,7 +80,7 @@ def test_a_changed_source_or_parameter_is_named(checkout, tmp_path):
 def test_a_verified_change_moves_the_fingerprint_and_keeps_the_commit(checkout, tmp_path):
     folder = _grid(tmp_path)
     stamp(folder, "tiny", "fig6", "run", checkout, commit="abc1234", date="2026-11-01")
-    (checkout / "locoman" / "to" / "schedule.py").write_text("# moved\n")
+    (checkout / "locoman" / "to" / "problem" / "schedule.py").write_text("# moved\n")
     assert status(folder, checkout)
     stamp(folder, "tiny", "fig6", "", checkout, verified="every dvc repro output bit-identical")
     record = read_provenance(folder)
@@ -139,4 +139,4 @@ def test_another_checkouts_fingerprint_reads_its_own_files(checkout):
     (checkout / "locoman" / "to" / "pipeline.py").write_text("from locoman.to import io\n")
     ours = fingerprint(checkout, "tiny")
     assert "locoman/to/pipeline.py" in ours["solve_code"]
-    assert "locoman/to/optimizer.py" not in ours["solve_code"]  # no longer imported
+    assert "locoman/to/solve/optimizer.py" not in ours["solve_code"]  # no longer imported

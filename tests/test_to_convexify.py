@@ -10,11 +10,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from test_to_assembly import N_X, RowSpace, _blocks, _virtual_problem
 
 from locoman.to.nlp.convexify import block_pattern, project_psd
 from locoman.to.nlp.derivatives import load_derivatives
 from locoman.to.nlp.ipopt import BlockNLP, parameter_vector
-from tests.test_to_assembly import N_X, RowSpace, _blocks, _virtual_problem
 
 
 def _psd(H: np.ndarray) -> np.ndarray:

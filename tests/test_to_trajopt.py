@@ -342,7 +342,8 @@ def test_problems_of_another_structure_load_the_same_compiled_terms(tmp_path):
 
 def test_a_schedule_too_large_is_refused_before_anything_is_built():
     """Issue 53: solve.schedule.swing_nodes=100000 ran 2 min and died with std::bad_alloc."""
-    from locoman.to.problem.schedule import MAX_PHASE_NODES, build_schedule
+    from locoman.config.to import MAX_PHASE_NODES
+    from locoman.to.problem.schedule import build_schedule
 
     errors = dict(ScheduleCfg(swing_nodes=100000).check())
     assert "swing_nodes" in errors and str(MAX_PHASE_NODES) in errors["swing_nodes"]

@@ -82,14 +82,19 @@ def solve_scenario(
     traj = optimizer.solve()
     scene = solution_scene(optimizer, traj, cfg.collision)
     model = load_scene_model(scene_dir)
-    traj, rounds, remaining, unfreed = search(optimizer, traj, model, scene, cfg.collision)
-    if (remaining or unfreed) and traj.success:
-        # The rounds ran out with pairs the solution needs still missing, or left a pair
-        # they could not free: not a solution.
-        status = "Collision_Pairs_Missing" if remaining else "Collision_Pairs_Unfreed"
-        traj = dataclasses.replace(traj, success=False, status=status)
-    write_solution(out_dir, traj, inputs, optimizer, cfg, scene_dir, rounds, remaining, unfreed)
-    return traj
+    found = search(optimizer, traj, model, scene, cfg.collision)
+    write_solution(
+        out_dir,
+        found.trajectory,
+        inputs,
+        optimizer,
+        cfg,
+        scene_dir,
+        found.rounds,
+        found.missing,
+        found.unfreed,
+    )
+    return found.trajectory
 
 
 def write_solution(

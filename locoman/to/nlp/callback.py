@@ -1,4 +1,5 @@
-"""TODO."""
+"""An oracle of :mod:`locoman.to.nlp.oracles` as a CasADi function IPOPT can call: a
+:class:`casadi.Callback` with fixed sparsity that forwards to NumPy code."""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""TODO."""
+"""The derivatives each term kind is compiled with: its Jacobian, gradient and Hessians
+(Gauss-Newton and exact), built once per kind from its CasADi function, compiled to C and
+kept in the cache by a key of their expressions (:mod:`locoman.to.nlp.compile`)."""
 
 from __future__ import annotations
 

@@ -262,9 +262,9 @@ class BlockNLP:
 def _single_threaded_blas() -> Iterator[None]:
     """Run IPOPT's MUMPS on one thread of CasADi's OpenBLAS while IPOPT runs; the process's
     setting is restored after. With one per core, parallel sums change the last bits of
-    each factorisation and the iterates follow: on ``tiny`` 2 threads took 808 iterations
-    where 1 took 225, to the same optimum. One thread makes the solve independent of the
-    machine's core count, and on 2 cores it is faster."""
+    each factorisation and the iterates follow, to the same optimum by a longer path
+    (docs/performance.md). One thread makes the solve independent of the machine's core
+    count, and on 2 cores it is faster."""
     library = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
     if not library.is_file():
         yield

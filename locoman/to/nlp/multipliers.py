@@ -1,4 +1,6 @@
-"""TODO."""
+"""IPOPT's primal-dual start (a *warm start*: x, the bound and constraint multipliers)
+carried from one NLP to the next: from a solve to the next round of found pairs, or from
+one grid cell to its neighbour, row by row through the blocks that own the rows."""
 
 from __future__ import annotations
 

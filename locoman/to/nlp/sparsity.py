@@ -1,4 +1,6 @@
-"""TODO."""
+"""Sparsity patterns and the maps that sum many calls' values into them: a term called
+over a block's calls writes its nonzeros into the NLP's fixed patterns through constant
+index maps (:class:`Mapped`), evaluated in CasADi maps of a few fixed sizes."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
-"""The per-node numbers of the TO: references and switches that vary along the trajectory
-(:attr:`locoman.to.problem.layout.NodeLayout.parameters`): the yaw reference, the keyframe costs'
-switches and references (9), (10), the surface under each foot, the hands' contacts on the
-object they touch, each object's support height and goal."""
+"""The TO's numbers: the problem's own (:class:`Numbers`) and the per-node ones
+(:func:`node_parameters`, the rows of
+:attr:`locoman.to.problem.layout.NodeLayout.parameters`): the yaw reference, the keyframe
+costs' switches and references (9), (10), the surface under each foot, the hands' contacts
+on the object they touch, each object's support height and goal."""
 
 from __future__ import annotations
 

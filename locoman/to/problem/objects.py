@@ -1,4 +1,6 @@
-"""TODO."""
+"""The objects of a TO problem: a carried or pushed object's rigid-body model
+(:class:`ObjectModel`, its mass, inertia, faces and boxes) and a fixed object as the box
+the robot and the objects keep out of (:class:`Obstacle`)."""
 
 from __future__ import annotations
 

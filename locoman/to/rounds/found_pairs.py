@@ -82,7 +82,7 @@ def _nearest_box(boxes: list, pose: np.ndarray, point: np.ndarray) -> int:
 
 
 @dataclasses.dataclass(frozen=True)
-class Scene:
+class SolutionScene:
     """What the search maps MuJoCo's bodies to: the TO's objects (in its order) with their
     poses along the solution, the fixed objects' boxes, the robot's frames, and the
     solution's contact schedule (:func:`trajectory_arrays`; None: touching allowed
@@ -123,7 +123,7 @@ class Scene:
 
 
 def _object_side(
-    k: int, j: int, other: Body, point: np.ndarray, scene: Scene
+    k: int, j: int, other: Body, point: np.ndarray, scene: SolutionScene
 ) -> list[CollisionPair]:
     """Pairs keeping carried object j off ``other``: points along all its edges
     (``scene.spacing_m`` apart) against a fixed box or the floor (with the obstacle's
@@ -158,7 +158,7 @@ def _object_side(
 
 
 def pairs_for(
-    close: ClosePair, k: int, scene: Scene, every_box: bool = False
+    close: ClosePair, k: int, scene: SolutionScene, every_box: bool = False
 ) -> list[CollisionPair]:
     """The TO's pairs at node k that keep the two bodies of ``close`` apart (a holding
     hand's wrist and the object it holds: out of it, touching allowed); a robot link against
@@ -195,7 +195,7 @@ def pairs_for(
     return []
 
 
-def candidates(close: ClosePair, scene: Scene, around: int = 1) -> list[CollisionPair]:
+def candidates(close: ClosePair, scene: SolutionScene, around: int = 1) -> list[CollisionPair]:
     """The pairs that keep ``close``'s bodies apart: at its node and ``around`` nodes either
     side (the next node too, for a pose between two, and that pose itself: a hand through a
     post between two nodes that both keep it out); never at node 0, which is given."""
@@ -226,7 +226,7 @@ class Check:
     them, thousands of pairs with their identities, was most of a check's time."""
 
     close: list[ClosePair]
-    scene: Scene
+    scene: SolutionScene
     around: int = 1
 
     @functools.cached_property
@@ -268,7 +268,7 @@ def _arm_against(close: ClosePair) -> Body | None:
     return None
 
 
-def arm_nodes(scene: Scene, node: int, side: int, around: int) -> range:
+def arm_nodes(scene: SolutionScene, node: int, side: int, around: int) -> range:
     """The nodes at most ``around`` from ``node`` (never node 0) over which the hand of arm
     ``side`` keeps the contact it has at ``node`` (without a schedule: all of them)."""
     nodes = len(scene.object_q)
@@ -285,7 +285,7 @@ def arm_nodes(scene: Scene, node: int, side: int, around: int) -> range:
 
 
 def arm_pairs(
-    close: list[ClosePair], existing: list[CollisionPair], scene: Scene, around: int
+    close: list[ClosePair], existing: list[CollisionPair], scene: SolutionScene, around: int
 ) -> list[CollisionPair]:
     """For each of ``close`` between an arm's link and a body not the robot: every link of
     both arms against every box of that body (:func:`pairs_for` with ``every_box``), each

@@ -21,7 +21,14 @@ from locoman.config.to import CollisionCfg
 from locoman.retarget.robot import contact_frames
 from locoman.sim.audit import ClosePair, close_pairs
 from locoman.to.collisions.pairs import CollisionPair
-from locoman.to.rounds.found_pairs import PROMOTED, Check, Scene, arm_pairs, round_pairs, unmodelled
+from locoman.to.rounds.found_pairs import (
+    PROMOTED,
+    Check,
+    SolutionScene,
+    arm_pairs,
+    round_pairs,
+    unmodelled,
+)
 from locoman.to.solve.optimizer import TrajectoryOptimizer
 from locoman.to.solve.trajectory import Trajectory
 
@@ -73,6 +80,53 @@ class Round:
     restart: bool = False
 
 
+@dataclasses.dataclass(frozen=True)
+class SearchResult:
+    """What :func:`search` ends with.
+
+    Attributes:
+        trajectory: The last solve (its iterations and solve time those of every solve);
+            not a success, with status ``Collision_Pairs_Missing`` or
+            ``Collision_Pairs_Unfreed``, where pairs are left missing or unfreed.
+        rounds: Every check and the solve it led to, restarts included.
+        missing: Close pairs the problem still lacks pairs for at the last check.
+        unfreed: Close pairs still deeper than ``cfg.unfreed_m`` there, modelled or not.
+    """
+
+    trajectory: Trajectory
+    rounds: list[Round]
+    missing: list[ClosePair]
+    unfreed: list[ClosePair]
+
+
+def _ended(
+    traj: Trajectory, rounds: list[Round], missing: list[ClosePair], unfreed: list[ClosePair]
+) -> SearchResult:
+    if (missing or unfreed) and traj.success:
+        # The rounds ran out with pairs the solution needs still missing, or left a pair
+        # they could not free: not a solution.
+        status = "Collision_Pairs_Missing" if missing else "Collision_Pairs_Unfreed"
+        traj = dataclasses.replace(traj, success=False, status=status)
+    return SearchResult(traj, rounds, missing, unfreed)
+
+
+@dataclasses.dataclass
+class _Search:
+    """The state the rounds share: the problem's solver and the scene a check replays in,
+    the pairs so far, the rounds and totals so far, every close pair seen, and whether a
+    round may still promote found pairs to (11) (``cfg.found_hard`` or ``off``)."""
+
+    optimizer: TrajectoryOptimizer
+    model: mujoco.MjModel
+    scene: SolutionScene
+    cfg: CollisionCfg
+    pairs: list[CollisionPair]
+    rounds: list[Round]
+    totals: _Totals
+    promote: str
+    seen: list[ClosePair]
+
+
 # IPOPT's statuses for "no feasible point here": a round ending so with promotions is
 # solved again without them (:func:`search`).
 INFEASIBLE = ("Infeasible_Problem_Detected", "Restoration_Failed")
@@ -82,17 +136,14 @@ def search(
     optimizer: TrajectoryOptimizer,
     traj: Trajectory,
     model: mujoco.MjModel,
-    scene: Scene,
+    scene: SolutionScene,
     cfg: CollisionCfg,
-) -> tuple[Trajectory, list[Round], list[ClosePair], list[ClosePair]]:
+) -> SearchResult:
     """Check ``traj``, add the pairs it needs and solve on from it, at most ``cfg.rounds``
     times (:func:`_rounds`); if pairs are left missing or unfreed or a round fails, solve
     again from Sec. IV-C.2's guess with every pair found so far and go on with the rounds
-    from there, at most ``cfg.restarts`` times. Returns the last trajectory (its iterations
-    and solve time those of every solve), the rounds, the close pairs the problem still
-    lacks pairs for after the last check (empty: the solution needs none it lacks) and
-    those still deeper than ``cfg.unfreed_m``, modelled or not; with ``found`` off, no
-    rounds or a failed ``traj``: ``traj``.
+    from there, at most ``cfg.restarts`` times (:class:`SearchResult`); with ``found`` off,
+    no rounds or a failed ``traj``: ``traj``.
 
     Why start again: pairs that join a solution already through an object can hold it in
     a local minimum that they cannot free. S1 without the keyframes' warm start: the first
@@ -109,17 +160,16 @@ def search(
     rounds: list[Round] = []
     totals = _Totals(traj)
     if cfg.found == "off" or cfg.rounds == 0 or not traj.success:
-        return traj, rounds, [], []  # a failed solve is no solution to check
-    promote, restarts, seen = cfg.found_hard, 0, []
+        return SearchResult(traj, rounds, [], [])  # a failed solve is no solution to check
+    state = _Search(optimizer, model, scene, cfg, pairs, rounds, totals, cfg.found_hard, [])
+    restarts, seen = 0, state.seen
     while True:
-        traj, remaining, unfreed, promote = _rounds(
-            optimizer, traj, model, scene, cfg, pairs, rounds, totals, promote, seen
-        )
+        traj, remaining, unfreed = _rounds(state, traj)
         # A round that failed (out of iterations from an optimum its new pairs moved by
         # centimetres) leaves no motion to check: like pairs left missing or unfreed, it
         # sends the search back to the guess, now with every pair found.
         if restarts == cfg.restarts or (traj.success and not (remaining or unfreed)):
-            return totals.of(traj), rounds, remaining, unfreed
+            return _ended(totals.of(traj), rounds, remaining, unfreed)
         restarts += 1
         arms = []
         if cfg.restart_arm_nodes > 0:
@@ -142,48 +192,40 @@ def search(
         rounds.append(dataclasses.replace(solved, restart=True))
         totals.add(traj)
         if not traj.success:
-            return totals.of(traj), rounds, [], []
+            return SearchResult(totals.of(traj), rounds, [], [])
 
 
 def _rounds(
-    optimizer: TrajectoryOptimizer,
-    traj: Trajectory,
-    model: mujoco.MjModel,
-    scene: Scene,
-    cfg: CollisionCfg,
-    pairs: list[CollisionPair],
-    rounds: list[Round],
-    totals: _Totals,
-    promote: str,
-    seen: list[ClosePair],
-) -> tuple[Trajectory, list[ClosePair], list[ClosePair], str]:
+    state: _Search, traj: Trajectory
+) -> tuple[Trajectory, list[ClosePair], list[ClosePair]]:
     """At most ``cfg.rounds`` rounds from ``traj`` (a successful solve): check it, add the
-    pairs it needs to ``pairs`` and solve on from its primal-dual point. Appends to
-    ``rounds`` and ``totals``, and each check's close pairs to ``seen``. Returns the last
+    pairs it needs to ``state.pairs`` and solve on from its primal-dual point. Appends to
+    ``state.rounds`` and ``state.totals``, each check's close pairs to ``state.seen``, and
+    sets ``state.promote`` to ``off`` once a round must not promote. Returns the last
     trajectory, the close pairs still unmodelled and those deeper than ``cfg.unfreed_m`` at
-    its check, and whether a later round may still promote (``promote``:
-    ``cfg.found_hard`` or ``off``).
+    its check.
 
     A round whose solve ends infeasible (:data:`INFEASIBLE`) with pairs promoted to (11) is
     solved again without the promotions (their pairs keep the penalty (12) they joined
     with), and no later round promotes: (11) on a pair that keeps coming back can leave no
     feasible point near the previous optimum (S1: an elbow held out of the shelf while the
     hand holds the basket). Another failure is not retried from the same point: a solve
-    that ran out of iterations would likely run out again (S2: 2 x 1000 iterations,
-    45 min); :func:`search` restarts from the guess instead.
+    that ran out of iterations would likely run out again; :func:`search` restarts from
+    the guess instead.
     """
+    optimizer, model, cfg, pairs = state.optimizer, state.model, state.cfg, state.pairs
     after = 0
     while True:
-        scene = _checked(scene, traj, cfg)
+        scene = _checked(state.scene, traj, cfg)
         close = close_pairs(model, scene.schedule, cfg.audit_margin_m, cfg.audit_substeps)
-        seen.extend(close)
+        state.seen.extend(close)
         deepest = min(close, key=lambda c: c.distance, default=None)
         check = Check(close, scene)
-        new = round_pairs(check, pairs, dataclasses.replace(cfg, found_hard=promote))
+        new = round_pairs(check, pairs, dataclasses.replace(cfg, found_hard=state.promote))
         if not new or after == cfg.rounds:
-            rounds.append(_round(close, deepest, []))
+            state.rounds.append(_round(close, deepest, []))
             unfreed = [c for c in close if c.distance < -cfg.unfreed_m]
-            return traj, unmodelled(check, pairs), unfreed, promote
+            return traj, unmodelled(check, pairs), unfreed
         after += 1
         log.info(
             f"round {after}: {len(close)} close pairs (deepest {_mm(deepest)}), "
@@ -201,8 +243,8 @@ def _rounds(
                 f"round {after} ended {solved.status} with {demoted} pairs "
                 "promoted to (11); solving it again without them, and promoting none from here"
             )
-            totals.add(solved)
-            promote = "off"
+            state.totals.add(solved)
+            state.promote = "off"
             new = [p for p in new if p.kind != PROMOTED]
             solved = optimizer.solve(
                 pairs=pairs + new, warm_start=traj, hessian="exact", label=label
@@ -210,25 +252,27 @@ def _rounds(
             iterations += solved.iterations
         pairs.extend(new)
         seconds = time.perf_counter() - tic
-        rounds.append(_round(close, deepest, new, solved, seconds, iterations, demoted))
-        totals.add(solved)
+        state.rounds.append(_round(close, deepest, new, solved, seconds, iterations, demoted))
+        state.totals.add(solved)
         traj = solved
         if not traj.success:
-            return traj, [], [], promote
+            return traj, [], []
 
 
-def solution_scene(optimizer: TrajectoryOptimizer, traj: Trajectory, cfg: CollisionCfg) -> Scene:
+def solution_scene(
+    optimizer: TrajectoryOptimizer, traj: Trajectory, cfg: CollisionCfg
+) -> SolutionScene:
     """The scene a check replays ``traj`` in: the problem's objects along it, its
     obstacles, the robot's contact frames, each node's seats and the solution's contact
     schedule."""
     inputs = optimizer.inputs
     seats = tuple(tuple(m.seat for m in mode.objects) for mode in optimizer.modes)
     obstacles = {o.name: o for o in inputs.obstacles}
-    scene = Scene(inputs.objects, traj.object_q, obstacles, contact_frames(), seats=seats)
+    scene = SolutionScene(inputs.objects, traj.object_q, obstacles, contact_frames(), seats=seats)
     return _checked(scene, traj, cfg)
 
 
-def _checked(scene: Scene, traj: Trajectory, cfg: CollisionCfg) -> Scene:
+def _checked(scene: SolutionScene, traj: Trajectory, cfg: CollisionCfg) -> SolutionScene:
     """``scene`` along ``traj``: its objects' poses and its contact schedule."""
     arrays = trajectory_arrays(traj, scene.names)
     return dataclasses.replace(

@@ -1,4 +1,6 @@
-"""TODO."""
+"""Sec. IV-C.2's initial guess: the robot's configurations interpolated between the
+keyframes, the objects along their schedule, the contact wrenches carrying each body's
+weight. (IPOPT's primal-dual start from an earlier solve is :mod:`locoman.to.nlp.multipliers`.)"""
 
 from __future__ import annotations
 

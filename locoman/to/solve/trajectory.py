@@ -1,4 +1,5 @@
-"""TODO."""
+"""A solved TO: the trajectory's nodes, times, configurations, velocities and wrenches,
+with the solver's status and the primal-dual point to start a next solve from."""
 
 from __future__ import annotations
 

@@ -91,8 +91,8 @@ def sphere_ellipsoid_penetration(
     it (semi-axes a_i, grown by r + margin): p~ = d^2 - 1, d the sphere centre's scaled
     distance from the box's centre. It touches the box's faces at their centres and cuts
     its corners: a guide, which the box replaces as alpha goes to zero. (The ellipsoid
-    through the corners, sqrt(3) a_i, held S2's hips away from the box they carry; from
-    there the solve diverged, cost 4e6 after 150 iterations.)"""
+    through the corners, sqrt(3) a_i, held S2's hips away from the box they carry, and
+    the solve diverged from there.)"""
     x = R.T @ (centre_sphere - box_centre)
     return ca.sumsqr(x / (half + radius + cfg.margin_m)) - 1.0
 
@@ -104,10 +104,9 @@ def sphere_sphere_penetration(
     units: p = (|a - b| - radius) / L, L = ``length`` [m] (|.| smoothed over 1 mm).
 
     The paper's d^2 - 1, d = |a - b| / radius, saturates at -1 as the centres meet, and its
-    gradient 2 d grad d vanishes there, so (12) hardly pushed a deep pair out: S2's Foot cell
-    at 2.5 kg, 0.6 rad ended its first solve with a wrist 123 mm in the torso and took 2 153
-    iterations to converge, failing a check; with this p, whose gradient keeps its size at
-    any depth, 236 iterations and every check passed (docs/performance.md)."""
+    gradient 2 d grad d vanishes there, so (12) hardly pushed a deep pair out (a wrist
+    left deep in the torso, a solve ten times longer); this p's gradient keeps its size at
+    any depth (docs/performance.md)."""
     return (ca.sqrt(ca.sumsqr(a - b) + 1e-6) - radius) / length
 
 

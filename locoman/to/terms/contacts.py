@@ -131,9 +131,9 @@ def foot_patch_kind(onset: str) -> TermKind:
     As paper A's (2b), the sole's centre does not slide but the sole may turn about it: the
     stance feet pivot by up to 12 deg per node on ``tiny``, S1 and S2 (reported by the
     evaluation as ``stance_foot_turn_max_rad``). Holding the turn too, as an object's
-    support does (:func:`locoman.to.terms.supports.turn_about_normal`), took ``tiny`` from 110 to
-    1446 iterations: its schedule turns the robot by pivoting, and would need turning steps
-    instead (docs/deviations.md)."""
+    support does (:func:`locoman.to.terms.supports.turn_about_normal`), slowed ``tiny``'s
+    solve about tenfold: its schedule turns the robot by pivoting, and would need turning
+    steps instead (docs/deviations.md)."""
     x_slots = {"r": 3, "r_dot": 3, "R": 9, "slack": 1}
     x_slots |= {"w": 3} if onset == "touchdown" else {"r_before": 3}
 

@@ -1,4 +1,5 @@
-"""TODO."""
+"""Collects the calls of each term kind across the transcription's sections, then hands
+out one block per kind (:class:`BlockBuilder`)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""TODO."""
+"""The collision pairs' calls (11)-(13): each pair under its kind's treatment, the
+spheres between nodes, the calls kept from one round of found pairs to the next."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""TODO."""
+"""Where each quantity of a node sits in the NLP's decision vector: the index arithmetic
+the transcription's sections share (:class:`NodeIndex`)."""
 
 from __future__ import annotations
 

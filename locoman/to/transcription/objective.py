@@ -1,4 +1,5 @@
-"""TODO."""
+"""The cost calls of the transcription: Table I's stance, walking and regularisation
+costs per node, the keyframe costs (9), (10) and the objects' goal and upright costs."""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""TODO."""
+"""The physics rows of the transcription: the lifted kinematics, the dynamics (1) of the
+robot and each object, the contacts (2)-(5) and friction cones (3) of each node's mode, and
+each contact's wrench on the bodies it joins (6)."""
 
 from __future__ import annotations
 
