@@ -713,7 +713,7 @@ def _hold_a_slot(folder: str, log: str) -> None:
             out.write(f"{time.monotonic()} -1 {i}\n")
 
 
-def test_jobs_of_grids_side_by_side_hold_at_most_their_slots(tmp_path):
+def test_jobs_of_grids_side_by_side_hold_at_most_their_slots_by_wall_clock_overlap(tmp_path):
     """Five processes, two slots: never more than two cells at once, every one runs, and a
     job without the slots in its environment runs at once."""
     log = tmp_path / "log.txt"

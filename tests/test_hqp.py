@@ -9,12 +9,7 @@ from hypothesis import strategies as st
 
 from locoman.hqp.impedance import joint_impedance_torque
 from locoman.hqp.limits import JointLimits, VelocityBox
-from locoman.hqp.solver import (
-    HierarchySolver,
-    WholeBodyHqp,
-    solve_hierarchy,
-    weighted_objective,
-)
+from locoman.hqp.solver import HierarchySolver, WholeBodyHqp, weighted_objective
 
 LIMITS = JointLimits(
     arm_min=np.full(7, -2.5),
@@ -22,6 +17,15 @@ LIMITS = JointLimits(
     velocity_max=np.r_[0.5, 0.5, 0.5, np.full(7, 2.0)],
     acceleration_max=np.r_[0.5, 0.5, 0.3, np.full(7, 10.0)],
 )
+
+
+def solve_level(jac, b1, lo, hi, objective=None):
+    """The product's solver on one problem: the bounds, (jac, b1), then the objective
+    (H, f) (none: min 1/2 ||x||^2)."""
+    h, f = (np.eye(len(lo)), np.zeros(len(lo))) if objective is None else objective
+    qp = HierarchySolver(h, len(b1))
+    qp.lower[:], qp.upper[:] = lo, hi
+    return qp.solve((jac, b1), f)
 
 
 def random_problem(seed: int):
@@ -82,7 +86,7 @@ def test_the_velocity_box_is_the_sequential_intersection_to_the_bit(seed):
 @given(st.integers(0, 10_000))
 def test_hqp_respects_every_bound(seed):
     jac, b1, lo, hi, level2, *_ = random_problem(seed)
-    x = solve_hierarchy([(jac, b1)], lo, hi, weighted_objective(level2, np.ones(10)))
+    x = solve_level(jac, b1, lo, hi, weighted_objective(level2, np.ones(10)))
     assert np.all(x >= lo) and np.all(x <= hi)
 
 
@@ -90,8 +94,8 @@ def test_hqp_respects_every_bound(seed):
 @given(st.integers(0, 10_000), st.floats(0.01, 10.0))
 def test_level2_never_degrades_level1(seed, weight):
     jac, b1, lo, hi, level2, *_ = random_problem(seed)
-    alone = solve_hierarchy([(jac, b1)], lo, hi)
-    both = solve_hierarchy([(jac, b1)], lo, hi, weighted_objective(level2, np.full(10, weight)))
+    alone = solve_level(jac, b1, lo, hi)
+    both = solve_level(jac, b1, lo, hi, weighted_objective(level2, np.full(10, weight)))
     r_alone = np.linalg.norm(jac @ alone - b1)
     r_both = np.linalg.norm(jac @ both - b1)
     assert r_both <= r_alone + 1e-6
@@ -101,7 +105,7 @@ def test_unbounded_hierarchy_matches_the_nullspace_projection():
     rng = np.random.default_rng(3)
     jac, b1 = rng.normal(size=(6, 10)), rng.normal(size=6)
     target = rng.normal(size=10)
-    x = solve_hierarchy([(jac, b1)], np.full(10, -1e3), np.full(10, 1e3), (np.eye(10), -target))
+    x = solve_level(jac, b1, np.full(10, -1e3), np.full(10, 1e3), (np.eye(10), -target))
     pinv = np.linalg.pinv(jac)
     expected = pinv @ b1 + (np.eye(10) - pinv @ jac) @ target
     np.testing.assert_allclose(x, expected, atol=1e-6)
@@ -138,7 +142,7 @@ def test_joint_impedance_law_is_eq_10():
 def test_measured_velocity_option_reaches_the_task(feedback):
     hqp = WholeBodyHqp(LIMITS, 1e-3, np.zeros(10), 4.0, 1.0, 1.0, 0.05, feedback)
     jac = np.eye(6, 10)
-    levels = hqp.levels(
+    hqp.step(
         jac,
         (np.ones(3), np.eye(3)),
         np.zeros(6),
@@ -147,13 +151,13 @@ def test_measured_velocity_option_reaches_the_task(feedback):
         np.full(6, 0.1),
     )
     expected = 4.0 * np.ones(3) - (0.1 if feedback else 0.0)
-    np.testing.assert_allclose(levels[0][1][:3], expected)
+    np.testing.assert_allclose(hqp.last_level1[1][:3], expected)
 
 
 def test_the_reused_qp_workspace_gives_the_one_shot_solution():
     """HierarchySolver keeps DAQP's workspace between solves: problem after problem, it
-    returns what solve_hierarchy (a fresh set-up each time) returns, to the last bit: the
-    replay's grasp is chaotic at that level, so a warm start would move its results."""
+    returns what a fresh solver (DAQP set up for that problem) returns, to the last bit:
+    the replay's grasp is chaotic at that level, so a warm start would move its results."""
     weights = np.r_[np.ones(3), np.full(7, 0.05)]
     qp = HierarchySolver(np.diag(weights), 6)
     for seed in range(30):
@@ -161,7 +165,7 @@ def test_the_reused_qp_workspace_gives_the_one_shot_solution():
         qp.lower[:], qp.upper[:] = lo, hi
         f = weighted_objective(level2, weights)[1]
         x = qp.solve((jac, b1), f)
-        expected = solve_hierarchy([(jac, b1)], lo, hi, weighted_objective(level2, weights))
+        expected = solve_level(jac, b1, lo, hi, weighted_objective(level2, weights))
         np.testing.assert_array_equal(x, expected)
         assert np.all(x >= lo) and np.all(x <= hi)
 

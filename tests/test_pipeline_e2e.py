@@ -133,7 +133,9 @@ def _grid(run_cli, workdir: Path, *overrides: str):
     return run_cli([*app, *cell, *overrides], workdir)
 
 
-def test_grid_cells_run_through_submitit_record_failures_and_skip_when_rerun(workdir, run_cli):
+def test_after_the_subgraph_grid_cells_run_through_submitit_record_failures_and_skip(
+    workdir, run_cli
+):
     """Issue 22: cells reuse the upstream artifacts of the test above; a cell that fails
     (here: ``figures.time_limit_s`` of 10 ms) is recorded and the grid goes on; a rerun
     skips it."""
@@ -191,7 +193,9 @@ def _solve_beside(workdir: Path, scene_dir: Path, out: Path, monkeypatch, **coll
     return json.loads((out / "metrics.json").read_text())
 
 
-def test_a_pole_the_starting_set_misses_is_found_and_the_arm_freed(workdir, tmp_path, monkeypatch):
+def test_after_the_subgraph_a_pole_the_starting_set_misses_is_found_and_the_arm_freed(
+    workdir, tmp_path, monkeypatch
+):
     """Issue 48: a pole beside the table where tiny's solution reaches for the box: its
     left hand and wrist pass through it (the starting set's palm spheres stop short of the
     fingers, and no wrist or elbow pair has a fixed object). The rounds find the pairs and

@@ -73,7 +73,7 @@ def test_an_arm_that_keeps_losing_gives_up(tmp_path):
     assert run_arm(command, "arm 1", attempts=3, backoff_s=0.0) == 255
 
 
-def test_each_stage_that_ran_is_timed_from_its_line_to_the_next(tmp_path):
+def test_each_stage_that_ran_is_timed_from_its_line_to_the_next_by_wall_clock(tmp_path):
     command = _script(
         tmp_path,
         """import time

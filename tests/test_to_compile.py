@@ -12,7 +12,7 @@ import pytest
 
 from locoman.artifacts.io import split_wall_clock
 from locoman.errors import SolverBuildError
-from locoman.to.nlp.compile import Recipe, compile_units, compiler, load_or_compile
+from locoman.to.nlp.compile import Recipe, compiler, load_or_compile
 
 
 def test_wall_clock_figures_are_split_from_the_results_at_any_depth():
@@ -39,6 +39,15 @@ def test_wall_clock_figures_are_split_from_the_results_at_any_depth():
 def _tiny_function(name: str) -> ca.Function:
     x = ca.SX.sym("x", 2)
     return ca.Function(name, [x], [ca.sin(x[0]) * x[1]])
+
+
+def compile_units(batches, directory) -> dict[str, ca.Function]:
+    """name -> function, each batch of functions one recipe of :func:`load_or_compile` (one
+    library), as the TO's terms are built."""
+    recipes = [
+        Recipe(" ".join(f.name() for f in fns), lambda fns=fns: (fns, {})) for fns in batches
+    ]
+    return {f.name(): f for fns, _ in load_or_compile(recipes, directory) for f in fns}
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")

@@ -8,14 +8,12 @@ level 1 leaves, and the minimum-norm velocity breaks the remaining ties.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import daqp
 import numpy as np
 
 from locoman.errors import SolverError
 from locoman.hqp.limits import JointLimits, VelocityBox
-from locoman.hqp.tasks import ClikTask, arm_mid_range_task, base_pose_task, wrap_angle
+from locoman.hqp.tasks import ClikTask, wrap_angle
 
 Task = tuple[np.ndarray, np.ndarray]
 
@@ -26,56 +24,16 @@ def weighted_objective(task: Task, weights: np.ndarray) -> tuple[np.ndarray, np.
     return a.T @ (weights[:, None] * a), -a.T @ (weights * b)
 
 
-def solve_hierarchy(
-    levels: Sequence[Task],
-    lower: np.ndarray,
-    upper: np.ndarray,
-    objective: tuple[np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray:
-    """Lexicographic least squares: bounds, then ``levels[0]``, ``levels[1]``, ..., objective.
-
-    DAQP measures the residual of each row of a constraint level in that row's own norm (rows
-    are normalised), so a level cannot weight its rows. A weighted lowest level is therefore
-    passed as DAQP's objective (see :func:`weighted_objective`), which DAQP minimises over the
-    optimal set of all the levels above. Without it the objective is min 1/2 ||x||^2.
-
-    Args:
-        levels: Tasks (A_k (m_k, n), b_k (m_k,)), most important first.
-        lower: (n,) lower bounds on x.
-        upper: (n,) upper bounds on x.
-        objective: Optional (H (n, n) positive definite, f (n,)).
-
-    Returns:
-        x (n,), inside the bounds.
-
-    Raises:
-        SolverError: If DAQP fails (bounds with lower > upper, a numerical breakdown).
-    """
-    n = len(lower)
-    h, f = (np.eye(n), np.zeros(n)) if objective is None else objective
-    a = levels[0][0] if len(levels) == 1 else np.vstack([t[0] for t in levels])
-    b = np.concatenate([t[1] for t in levels])
-    breaks = [n]
-    for t in levels:
-        breaks.append(breaks[-1] + len(t[1]))
-    x, _, flag, _ = daqp.solve(
-        h,
-        f,
-        np.ascontiguousarray(a, dtype=float),
-        np.concatenate([upper, b]),
-        np.concatenate([lower, b]),
-        np.zeros(n + len(b), dtype=np.int32),
-        np.array(breaks, dtype=np.int32),
-    )
-    if flag < 0:
-        raise SolverError(f"DAQP failed on the hierarchical QP (exit flag {flag})")
-    return np.clip(x, lower, upper)
-
-
 class HierarchySolver:
-    """:func:`solve_hierarchy` for one task level under bounds with a weighted objective of
-    fixed Hessian, DAQP's workspace allocated once (``daqp.Model``): the 1 kHz loop solves
-    the same structure with new numbers, and the set-up is most of a solve's time.
+    """Lexicographic least squares: the bounds, then one task level, then a weighted
+    objective of fixed Hessian, with DAQP's workspace allocated once (``daqp.Model``): the
+    1 kHz loop solves the same structure with new numbers, and the set-up is most of a
+    solve's time.
+
+    DAQP measures the residual of each row of a constraint level in that row's own norm
+    (rows are normalised), so a level cannot weight its rows: the weighted lowest level is
+    DAQP's objective (:func:`weighted_objective`), minimised over the optimal set of the
+    levels above.
 
     Fill :attr:`lower` and :attr:`upper` (views into the QP's own bound vectors, so nothing
     is copied), then call :meth:`solve`.
@@ -170,23 +128,6 @@ class WholeBodyHqp:
         self.q_star = np.asarray(q0, dtype=float).copy()
         self.qdot_star = np.zeros(10)
         self.last_level1: Task | None = None
-
-    def levels(
-        self,
-        jacobian: np.ndarray,
-        x_desired: tuple[np.ndarray, np.ndarray],
-        xdot_desired: np.ndarray,
-        x_actual: tuple[np.ndarray, np.ndarray],
-        q_base_desired: np.ndarray,
-        xdot_actual: np.ndarray | None = None,
-    ) -> tuple[Task, Task]:
-        """Level 1 (eq. (4)) and level 2 (eq. (6)) for the current state."""
-        # Level 1 with the measured velocity only under the literal law.
-        feedback = xdot_actual if self.measured_velocity_feedback else None
-        level1 = ClikTask(self.kp, self.kv)(jacobian, x_desired, xdot_desired, x_actual, feedback)
-        base = base_pose_task(q_base_desired, self.q_star[:3], self.level2_gain)
-        arm = arm_mid_range_task(self.limits.arm_mid, self.q_star[3:], self.level2_gain)
-        return level1, (np.vstack([base[0], arm[0]]), np.concatenate([base[1], arm[1]]))
 
     def step(
         self,

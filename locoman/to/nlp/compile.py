@@ -171,30 +171,6 @@ def _ensure_built(
     return [library[u.key] for u in units]
 
 
-def compile_units(
-    batches: Sequence[Sequence[ca.Function]],
-    directory: Path,
-    flags: Sequence[str] = ("-O0",),
-    jobs: int | None = None,
-) -> dict[str, ca.Function]:
-    """Each batch of functions as one compiled library, loaded from ``directory`` when a
-    valid one is there and built (``jobs`` at a time, default one per core) otherwise;
-    prints which unit, how many of how many, and the time, while it compiles.
-
-    Returns:
-        name -> the compiled function.
-
-    Raises:
-        SolverBuildError: No C compiler, or one failed.
-    """
-    libraries = _ensure_built(batches, directory, flags, jobs)
-    return {
-        fn.name(): _load(fn.name(), library)
-        for fns, library in zip(batches, libraries, strict=True)
-        for fn in fns
-    }
-
-
 @dataclasses.dataclass(frozen=True)
 class Recipe:
     """One library as :func:`load_or_compile` wants it.
@@ -239,8 +215,10 @@ def load_or_compile(
     flags: Sequence[str] = ("-O0",),
     jobs: int | None = None,
 ) -> list[tuple[list[ca.Function], dict]]:
-    """Each recipe's functions, compiled (:func:`compile_units`), and its data: from the
-    index when it knows the recipe's fingerprint, else made, compiled and indexed.
+    """Each recipe's functions, compiled, and its data: from the index when it knows the
+    recipe's fingerprint (and its library is valid), else made, compiled (``jobs`` libraries
+    at a time, default one per core; logging which, how many of how many, and the time)
+    and indexed.
 
     Raises:
         SolverBuildError: No C compiler, or one failed.
