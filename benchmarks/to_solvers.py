@@ -48,7 +48,7 @@ def _build_set(cache: Path, compiler: str, flags: list[str]) -> float:
     script = (
         "from pathlib import Path; import sys;"
         "from locoman.to.terms.library import all_kinds, g1_terms;"
-        "from locoman.to.nlp.ipopt import load_derivatives;"
+        "from locoman.to.nlp.derivatives import load_derivatives;"
         "load_derivatives([k.term for k in all_kinds(g1_terms())], Path(sys.argv[1]), sys.argv[2:])"
     )
     env = dict(os.environ, CC=compiler)

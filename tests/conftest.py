@@ -30,7 +30,7 @@ CLI_TIMEOUT_S = 3600
 # files in collection order (`--dist loadfile --no-loadscope-reorder`): these start at once,
 # one per worker, and the short files fill in behind them. In xdist's default order (files
 # with the most tests first) the end-to-end file started last and ran alone on one core.
-SLOW_FILES = ("test_pipeline_e2e.py", "test_dvc_experiments.py")
+SLOW_FILES = ("test_pipeline_e2e.py", "test_dvc_experiments.py", "test_mm_stages.py")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

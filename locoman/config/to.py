@@ -23,9 +23,7 @@ from locoman.scene import g1
 # before anything is allocated (100000 swing nodes ran 2 min and died with std::bad_alloc).
 MAX_PHASE_NODES = 50
 
-
 MAX_NODES = 1000
-
 
 TOO_MANY_NODES = "each node adds about 200 variables and their derivatives to the NLP"
 
@@ -112,7 +110,6 @@ class CostWeights:
 # goal are summed once. The rest of these fields are not weights.
 SUMMED = ("keyframe_base", "object_goal")
 
-
 NOT_WEIGHTS = ("clearance_m", "base_height_m", "timestep_s", "average_over_nodes")
 
 
@@ -138,12 +135,9 @@ def averaged_over_nodes(weights: CostWeights, nodes: int) -> CostWeights:
 # kind of their own (paper A, S2: "between the knees when walking", with (11)).
 _ARM_LINKS = g1.ARM_CHAIN[g1.ARM_CHAIN.index("shoulder_yaw_link") :]
 
-
 _TRUNK_LINKS = ("torso_link", "pelvis", "{side}_hip_roll_link", "{side}_hip_yaw_link")
 
-
 _THIGHS = ("hip_roll_link", "hip_yaw_link")
-
 
 # How a collision kind enters the TO: not at all, as the penalty (12) on p, as the hard
 # constraint (11) p >= 0, or through the homotopy (13) from a smooth stand-in body.
@@ -329,7 +323,6 @@ class CollisionCfg:
 # The fields of CollisionCfg that hold a treatment; those between two of the G1's spheres.
 SPHERE_KINDS = ("self_collision", "knee_collision")
 
-
 KINDS = (
     *SPHERE_KINDS,
     "object_body",
@@ -343,7 +336,6 @@ KINDS = (
     "found",
     "found_hard",
 )
-
 
 # The Hessian flavours: without the constraints' curvature; with it, each call's projected
 # onto the positive semidefinite cone (:mod:`locoman.to.nlp.convexify`); with it as it is.

@@ -20,9 +20,7 @@ from locoman.artifacts import ArtifactSchema, Field
 
 TRAJECTORY_FILE = "trajectory.npz"
 
-
 MCAP_FILE = "trajectory.mcap"
-
 
 TRAJECTORY = ArtifactSchema(
     "to.trajectory",

@@ -84,13 +84,10 @@ def box_edge_points(centre, half_extents, spacing: float) -> np.ndarray:
 # object's axes [rad].
 _BOTTOM_TOL_M = 1e-3
 
-
 _ALIGNED_TOL_RAD = 1e-3
-
 
 # The top of a fixed support lies this close to the object's support height [m].
 _HEIGHT_TOL_M = 5e-3
-
 
 Box = tuple[np.ndarray, np.ndarray]
 

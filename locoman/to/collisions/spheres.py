@@ -81,9 +81,7 @@ def _axis_spheres(model: mujoco.MjModel, geom: int) -> list[tuple[np.ndarray, fl
 
 FOREARM_LINKS = ("left_wrist_roll_link", "right_wrist_roll_link")
 
-
 ELBOW_LINKS = ("left_elbow_link", "right_elbow_link")
-
 
 # The hips, thighs and shins (``legs_object``), as their capsules' sphere chains. The hip
 # roll links stand out sideways from the pelvis: without them, S2's carried box went 7 cm
@@ -94,9 +92,7 @@ LEG_LINKS = tuple(
     for link in ("hip_roll_link", "hip_yaw_link", "knee_link")
 )
 
-
 FOOT_SPHERE_M = 0.04  # radius of the heel and toe spheres [m]
-
 
 FOOT_SPHERE_X = (-0.05, 0.05)  # heel and toe along the sole [m]: the G1's sole is 18 cm long
 

@@ -42,7 +42,6 @@ from locoman.errors import SolverBuildError
 
 log = logging.getLogger(__name__)
 
-
 CACHE_ENV = "LOCOMAN_CACHE_DIR"
 
 

@@ -281,7 +281,6 @@ def _single_threaded_blas() -> Iterator[None]:
 # glibc's mallopt parameters and their defaults.
 _M_TRIM_THRESHOLD, _M_MMAP_MAX = -1, -4
 
-
 _TRIM_DEFAULT, _MMAP_MAX_DEFAULT = 128 * 1024, 65536
 
 

@@ -7,9 +7,7 @@ import functools
 
 NQ = 35  # G1: 6 base + 29 joints
 
-
 FEET = ("left_foot", "right_foot")
-
 
 HANDS = ("left_hand", "right_hand")
 
@@ -41,7 +39,6 @@ KINEMATICS, N_KIN = _slices(
     }
 )
 
-
 # Points on the trunk kept out of the objects (``object_body``), with the radius of the
 # collision capsule around each [m]: link, offset in the link frame. The legs are their
 # capsules' sphere chains (``locoman.to.collisions.spheres.LEG_LINKS``): a single sphere
@@ -62,27 +59,19 @@ def object_key(j: int, quantity: str) -> str:
 # Named parts of a node's blocks, relative to a block's start (:func:`part`).
 POSITION = slice(0, 3)  # of a q = (p, rpy) [m]
 
-
 ORIENTATION = slice(3, 6)  # roll, pitch, yaw of a q [rad]
-
 
 TILT = slice(3, 5)  # roll, pitch of a q [rad]
 
-
 JOINTS = slice(6, NQ)  # of the robot's q [rad] or v [rad/s]
-
 
 LINEAR = slice(0, 3)  # of a v = (dp/dt, drpy/dt) [m/s]
 
-
 ANGULAR = slice(3, 6)  # Euler rates of a v [rad/s]
-
 
 FORCE = slice(0, 3)  # of a wrench [N]
 
-
 MOMENT = slice(3, 6)  # of a wrench [N m]
-
 
 VERTICAL = 2  # the z entry of a position or a force
 

@@ -40,9 +40,7 @@ from locoman.to.problem.objects import ObjectModel, Obstacle
 
 KIND = "found"
 
-
 PROMOTED = "found_hard"  # a found pair still penetrated after a round with it
-
 
 # The links between each palm and its forearm. Holding an object they sit millimetres off
 # its face, so their found pairs against it keep them out of it (touching allowed), not a
@@ -53,14 +51,12 @@ WRIST_LINKS = tuple(
     for side in ("left", "right")
 )
 
-
 # Each arm's links, shoulder to palm. With ``CollisionCfg.restart_arm_nodes`` a restart
 # keeps both arms whole out of what one of them was found in: S1's AllKeyframe (2.5 kg,
 # 1.2 rad) found the right palm in the basket's back wall, then in its right wall, the
 # shoulder in the shelf's top, each round's pairs pushing the arm into the next link's or
 # box's blind spot.
 ARM_LINKS = tuple(tuple(f"{side}_{link}" for link in g1.ARM_CHAIN) for side in ("left", "right"))
-
 
 # The floor as a box under it, for a link or a carried object that reaches it.
 FLOOR_BOX = Obstacle("floor", np.array([0.0, 0.0, -0.5]), 0.0, np.array([50.0, 50.0, 0.5]))

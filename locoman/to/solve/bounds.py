@@ -1,4 +1,6 @@
-"""The TO's variable bounds and its initial guess, Sec. IV-C.2's subtask-like warm start."""
+"""The TO's variable bounds: the joints' limits from the model, and sanity boxes on the
+base, the objects and the wrenches that keep IPOPT's iterates physical (the initial guess
+is :mod:`locoman.to.solve.initial_guess`)."""
 
 from __future__ import annotations
 
@@ -31,17 +33,13 @@ from locoman.to.terms.dynamics import STANDARD_GRAVITY
 # [N], could otherwise jump by hundreds and tip the next iterate's Euler angles over).
 TILT_MAX = math.pi / 3  # object roll, pitch [rad]
 
-
 # Base roll, pitch [rad]: a G1 bending to a box on the floor pitches its pelvis to ~77 deg;
 # 83 deg keeps the Euler-rate map of (1) well conditioned (cos 83 deg = 0.12).
 BASE_TILT_MAX = 1.45
 
-
 LINEAR_SPEED_MAX = 5.0  # base and object [m/s]
 
-
 ANGULAR_SPEED_MAX = 2.0 * math.pi  # base and object Euler rates [rad/s]
-
 
 WRENCH_LEVER = 0.5  # moment bound per newton of force bound [m]
 

@@ -126,9 +126,7 @@ def penetration_residual(p: ca.SX, softness: float) -> ca.SX:
 # pair's is the least), log-sum-exp smoothing [m], length L [m].
 BOX_NUMBERS = {"margin": 1, "smoothing": 1, "length": 1}
 
-
 PENALTY_NUMBERS = {"weight": 1, "softness": 1}
-
 
 # geometry -> (x slots, p slots); ``c``: a robot sphere's lifted centre.
 GEOMETRIES: dict[str, tuple[dict[str, int], dict[str, int]]] = {

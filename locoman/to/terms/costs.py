@@ -28,13 +28,11 @@ LEGS = tuple(
     k for k, n in enumerate(G1_JOINT_NAMES) if any(p in n for p in ("hip", "knee", "ankle"))
 )
 
-
 ARMS = tuple(
     k
     for k, n in enumerate(G1_JOINT_NAMES)
     if any(p in n for p in ("waist", "shoulder", "elbow", "wrist"))
 )
-
 
 # The arms' nominal angles: the G1's standing posture (elbows bent, hands off the hips).
 # Table I regularises q_arm without naming a reference; at zero the G1's elbow capsules
@@ -134,9 +132,7 @@ def keyframe_foot_cost(w: CostWeights, r_lf: ca.SX, r_rf: ca.SX, r_des: ca.SX) -
 
 STANCE_WEIGHTS = ("com_over_feet", "leg_symmetry", "foot_yaw_symmetry", "base_pose_stance")
 
-
 WALKING_WEIGHTS = ("leg_roll", "base_pose_walking", "foot_clearance", "clearance_m")
-
 
 REGULARIZATION_WEIGHTS = (
     "force",

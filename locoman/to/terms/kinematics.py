@@ -45,7 +45,6 @@ from locoman.to.terms.term import Rows, TermKind, term_kind
 
 _AXES = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0)}
 
-
 _AXES["JointModelRZ"] = (0.0, 0.0, 1.0)
 
 

@@ -259,7 +259,6 @@ class Chassis(Support):
 # Every support kind, for the compiled set of the TO's terms.
 SUPPORT_KINDS: tuple[type[Support], ...] = (Surface, OnObject, Chassis)
 
-
 OBJECT_NUMBERS = {"half": 2, "friction": 1, "rear_axle_x": 1}
 
 

@@ -1,13 +1,13 @@
-"""The kinds of terms paper A's TO is made of, each one small compiled function.
+"""The term data model: what a kind of term is and how it is called.
 
-A :class:`TermKind` names the slices of its inputs (``x``: decision variables, gathered per
-call; ``p``: numbers) and builds its rows and costs from them. The modules here define the
-kinds by what they are about: the robot's kinematics and collision spheres
-(:mod:`.kinematics`), the dynamics (1) of every body and the wrenches contacts exchange
-(:mod:`.dynamics`), the contacts (2)-(5) and friction cones (3) (:mod:`.contacts`), the
-supports of objects (:mod:`.supports`), the costs of Table I, (9), (10) (:mod:`.costs`) and
-the collision terms (11)-(13) (:mod:`.collisions`). Which kinds are called where, on which
-variables and with which numbers, is :mod:`locoman.to.transcription.transcribe`'s business: data.
+A :class:`Term` is one small compiled CasADi function ``F(x, p) -> (g, l, r)``; a
+:class:`TermKind` names the slices of its inputs (``x``: decision variables, gathered per
+call; ``p``: numbers) and builds its rows (:class:`Rows`) from named symbols
+(:class:`Symbols`) by :func:`term_kind`. :class:`Calls` collects a kind's calls (which
+variables, which numbers), a :class:`Block` is those calls placed in the NLP, and
+:class:`RowSpace` hands out the NLP's constraint rows. The kinds themselves are in the
+sibling modules, by area of paper A; which kind is called where is the transcription's
+business (:mod:`locoman.to.transcription`): data.
 """
 
 from __future__ import annotations

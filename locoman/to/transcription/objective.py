@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from locoman.to.problem.numbers import Numbers
 from locoman.to.terms.costs import (
     REGULARIZATION_WEIGHTS,
     STANCE_WEIGHTS,
@@ -19,13 +18,20 @@ from locoman.to.terms.costs import (
     walking_kind,
     weight_values,
 )
-from locoman.to.terms.library import RobotTerms
-from locoman.to.transcription.index import NodeIndex
 from locoman.to.transcription.physics import carried_objects
+from locoman.to.transcription.section import Section
 
 
-def cost_rows(b, at: NodeIndex, modes, numbers: Numbers, robot: RobotTerms, P, par, opar) -> None:
+def cost_rows(section: Section) -> None:
     """(8) per node by its mode, L_reg, L_slack, (9), (10) and the objects' poses."""
+    b, at, modes = section.builder, section.at, section.modes
+    numbers, robot, P, par, opar = (
+        section.numbers,
+        section.robot,
+        section.P,
+        section.par,
+        section.opar,
+    )
     w = numbers.weights
     stance_w = weight_values(w, STANCE_WEIGHTS)
     walking_w = weight_values(w, WALKING_WEIGHTS)

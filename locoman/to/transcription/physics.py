@@ -14,7 +14,6 @@ from locoman.to.problem.layout import (
     limb,
 )
 from locoman.to.problem.modes import NodeMode
-from locoman.to.problem.numbers import Numbers
 from locoman.to.terms.contacts import (
     foot_cone_kind,
     foot_patch_kind,
@@ -32,6 +31,7 @@ from locoman.to.terms.library import RobotTerms
 from locoman.to.terms.supports import object_numbers, support_contact_kind, support_wrench_kind
 from locoman.to.transcription.builder import BlockBuilder
 from locoman.to.transcription.index import NodeIndex
+from locoman.to.transcription.section import Section
 
 
 def kinematics_rows(b: BlockBuilder, at: NodeIndex, robot: RobotTerms, n: int) -> None:
@@ -53,9 +53,11 @@ def kinematics_rows(b: BlockBuilder, at: NodeIndex, robot: RobotTerms, n: int) -
         b.define(kind)
 
 
-def dynamics_rows(b, at: NodeIndex, modes, numbers: Numbers, robot: RobotTerms, P, par) -> None:
+def dynamics_rows(section: Section) -> None:
     """(1) of the robot and of each object simulated at k + 1, with the wrenches of node
     k's contacts, over every step."""
+    b, at, modes = section.builder, section.at, section.modes
+    numbers, robot, P, par = section.numbers, section.robot, section.P, section.par
     objects = numbers.objects
     robot_step, object_step = robot_step_kind(), object_step_kind()
     steps = b.own(robot_step)
@@ -138,10 +140,16 @@ def dynamics_rows(b, at: NodeIndex, modes, numbers: Numbers, robot: RobotTerms, 
                 b.onto(on_object, x, {"sign": -1.0, "c_local": obj.com}, object_rows[(k, j)])
 
 
-def contact_rows(
-    b, at: NodeIndex, modes, numbers: Numbers, robot: RobotTerms, P, par, opar
-) -> None:
+def contact_rows(section: Section) -> None:
     """The contacts of node k + 1: feet, hands, supports."""
+    b, at, modes = section.builder, section.at, section.modes
+    numbers, robot, P, par, opar = (
+        section.numbers,
+        section.robot,
+        section.P,
+        section.par,
+        section.opar,
+    )
     k_z = numbers.contact.stiffness
     # A landing sole sinks no deeper than its slack may (sole_depth_kind: why touchdown).
     depth_max = numbers.contact.slack_max_m
@@ -215,8 +223,10 @@ def contact_rows(
             b.own(kind).add(x, p)
 
 
-def wrench_rows(b, at: NodeIndex, modes, numbers: Numbers, robot: RobotTerms, P, par) -> None:
+def wrench_rows(section: Section) -> None:
     """Node k's rows on its wrenches: the friction cones and CoP (3), the supports' rows."""
+    b, at, modes = section.builder, section.at, section.modes
+    numbers, robot, P, par = section.numbers, section.robot, section.P, section.par
     contact = numbers.contact
     sole_half = np.asarray(robot.frames.sole_half_extents, dtype=float)
     for k, mode in enumerate(modes[:-1]):

@@ -43,6 +43,7 @@ from locoman.to.transcription.physics import (
     kinematics_rows,
     wrench_rows,
 )
+from locoman.to.transcription.section import Section
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,10 +127,11 @@ def transcribe(
     opar = NodeLayout.of(len(numbers.objects)).object_parameters
     b = BlockBuilder()
     kinematics_rows(b, at, robot, n)
-    dynamics_rows(b, at, modes, numbers, robot, P, par)
-    contact_rows(b, at, modes, numbers, robot, P, par, opar)
-    wrench_rows(b, at, modes, numbers, robot, P, par)
-    cost_rows(b, at, modes, numbers, robot, P, par, opar)
+    section = Section(b, at, modes, numbers, robot, P, par, opar)
+    dynamics_rows(section)
+    contact_rows(section)
+    wrench_rows(section)
+    cost_rows(section)
     names = tuple(s.name for s in spheres.spheres)
     context = (n, layout.width, names, numbers.collision, numbers.weights)
     reused = previous.pair_calls if previous is not None else None
