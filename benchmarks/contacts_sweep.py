@@ -74,6 +74,7 @@ def contact_rows(scenario: str, seed: int) -> list[dict[str, Any]] | dict[str, A
                     "margin": row["margin"],
                     "rival": row["rival"],
                     "silhouette_iou": row["silhouette_iou"],
+                    "contact_gap_m": row["contact_gaps_m"][effector],
                     "doubtful": row["doubtful"],
                 }
             )

@@ -39,6 +39,7 @@ from locoman.contact.surface import (
     sample_surface,
     signed_distance,
 )
+from locoman.contact.transfer import contact_gaps, place_contacts
 from locoman.errors import ModelError, SceneError
 from locoman.perception import camera
 from locoman.scene.objects import OBJECT_KINDS, Primitive, object_geometry
@@ -447,10 +448,10 @@ def test_a_registration_in_a_wrong_basin_is_flagged_and_a_right_one_is_not():
     refined = icp(source, surface, starts, 0.1, 40, False, (1.0, 1.0), upright=True, view=view)
     overlaps = overlap_scores(source, surface, refined, 0.01, view)
     cfg = ConfidenceCfg()
-    right = confidence(_registration(refined, overlaps, 0), surface, source, view, mask, cfg)
+    right = confidence(_registration(refined, overlaps, 0), surface, source, view, mask, cfg, {})
     assert not right.doubtful, right
     assert right.silhouette_iou > 0.8 and right.margin > cfg.min_margin
-    wrong = confidence(_registration(refined, overlaps, 1), surface, source, view, mask, cfg)
+    wrong = confidence(_registration(refined, overlaps, 1), surface, source, view, mask, cfg, {})
     assert wrong.doubtful
     assert any("silhouette" in r or "margin" in r for r in wrong.reasons), wrong.reasons
     assert wrong.silhouette_iou < right.silhouette_iou
@@ -468,3 +469,49 @@ def test_a_pose_that_places_the_cloud_alike_is_no_rival():
     c[:3, 3] = [0.2, 0.0, 0.0]
     moved = cloud_moved(np.stack([a, b, c]), a, source)
     np.testing.assert_allclose(moved, [0.0, 0.001, 0.2], atol=1e-12)
+
+
+def test_a_hand_that_lands_off_the_object_makes_the_registration_doubtful():
+    """The same right registration: a hand placed a handspan off the object it holds is
+    named, and a foot's drop to the floor is not a gap."""
+    rng = np.random.default_rng(2)
+    surface, truth, view, source, mask = _viewed_box(rng)
+    refined = icp(source, surface, truth[None], 0.1, 40, False, (1.0, 1.0), upright=True)
+    reg = _registration(refined, np.array([0.9]), 0)
+    cfg = ConfidenceCfg()
+    close = confidence(reg, surface, source, view, mask, cfg, {"left_hand": 0.01})
+    assert not close.doubtful, close
+    far = confidence(reg, surface, source, view, mask, cfg, {"left_hand": 0.01, "right_hand": 0.08})
+    assert far.doubtful
+    assert far.reasons == ("right_hand lands 8.0 cm off the object > 0.06 m",)
+    raw = np.array([[0.0, 0.0, 0.08], [0.3, 0.0, 0.5]])
+    projected = np.array([[0.0, 0.0, 0.0], [0.3, 0.04, 0.5]])
+    gaps = contact_gaps(raw, projected, ["left_foot", "right_hand"])
+    np.testing.assert_allclose(gaps, [0.0, 0.04])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    stretch=st.tuples(*[st.floats(0.8, 1.25)] * 3),
+    yaw=st.floats(-np.pi, np.pi),
+    offset=st.floats(0.1, 0.8),
+)
+def test_a_foot_keeps_its_distance_from_the_object_and_a_hand_is_stretched_with_it(
+    stretch, yaw, offset
+):
+    """Under an affine map A = [R D | t] (a turn R, a per-axis stretch D), a hand on the
+    object goes where A puts it; a foot ``offset`` metres beside the object's nearest cloud
+    point stays that far from where A puts that point, turned by R."""
+    rng = np.random.default_rng(0)
+    cloud = rng.uniform(-0.3, 0.3, size=(500, 3))
+    cloud[:, 0] = 0.3  # the face the person stands in front of
+    rot = Rotation.from_euler("z", yaw).as_matrix()
+    affine = np.eye(4)
+    affine[:3, :3] = rot @ np.diag(stretch)
+    affine[:3, 3] = [1.0, -2.0, 0.5]
+    hand = cloud[7]
+    foot = cloud[11] + [offset, 0.0, 0.0]
+    placed = place_contacts(affine, np.stack([hand, foot]), cloud, ["left_hand", "left_foot"])
+    np.testing.assert_allclose(placed[0], affine[:3, :3] @ hand + affine[:3, 3], atol=1e-12)
+    anchor = affine[:3, :3] @ cloud[11] + affine[:3, 3]
+    np.testing.assert_allclose(placed[1] - anchor, rot @ [offset, 0.0, 0.0], atol=1e-9)

@@ -149,6 +149,8 @@ class ConfidenceCfg:
         distinct_fraction: A hypothesis places the cloud otherwise when it moves its points
             by more than this fraction of the object's size (median) [-].
         silhouette_radius_px: Radius each surface sample is drawn with in R_g [px].
+        max_contact_gap_m: A contact the registration places farther than this from the
+            object's surface (a foot: horizontally) makes it doubtful [m].
     """
 
     min_overlap: float = 0.5
@@ -156,12 +158,17 @@ class ConfidenceCfg:
     min_silhouette_iou: float = 0.5
     distinct_fraction: float = 0.1
     silhouette_radius_px: int = 3
+    max_contact_gap_m: float = 0.06
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
         for name in ("min_overlap", "min_margin", "min_silhouette_iou", "distinct_fraction"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 errors.append((name, f"must be in [0, 1], got {getattr(self, name)}"))
+        if not 0.0 < self.max_contact_gap_m <= 1.0:
+            errors.append(
+                ("max_contact_gap_m", f"must be in (0, 1] m, got {self.max_contact_gap_m}")
+            )
         if not 0 <= self.silhouette_radius_px <= 50:
             errors.append(("silhouette_radius_px", "must be in [0, 50] px"))
         return errors

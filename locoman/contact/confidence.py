@@ -13,7 +13,11 @@ shows the same walls). Three signals, each computed from the images and the clou
   (a box turned by half a turn) still move the cloud, and the hands with it, to its other
   side: they count as other poses, which the person's facing tells apart;
 - ``silhouette_iou``: the object's silhouette drawn in R_g through the winner against the
-  object's mask in R_g: a registration that fits the depth cloud but not the picture.
+  object's mask in R_g: a registration that fits the depth cloud but not the picture;
+- ``contact_gaps_m``: how far each contact the winner places had to move to touch the
+  object (:func:`locoman.contact.transfer.contact_gaps`): a hand holds the object, so a
+  pose that puts the hand a handspan off it is wrong where the hand is, however well the
+  clouds overlap (a trolley's thin handle bar weighs nothing in the overlap).
 
 A registration is *doubtful* when any falls below its threshold (``contacts.confidence``);
 ``contacts.on_doubt`` decides what the stage does then (:mod:`locoman.contact.pipeline`).
@@ -43,6 +47,7 @@ class Confidence:
             tells the poses apart.
         margin: ``overlap - runner_up`` [-].
         silhouette_iou: IoU of the registered object's silhouette with R_g's mask, in [0, 1].
+        contact_gaps_m: Per effector, how far its contact moved onto the object [m].
         doubtful: Some signal is below its threshold.
         reasons: Which, with their values.
     """
@@ -52,6 +57,7 @@ class Confidence:
     rival: float
     margin: float
     silhouette_iou: float
+    contact_gaps_m: dict[str, float]
     doubtful: bool
     reasons: tuple[str, ...]
 
@@ -96,9 +102,11 @@ def confidence(
     view: View | None,
     mask: np.ndarray,
     cfg: ConfidenceCfg,
+    contact_gaps_m: dict[str, float],
 ) -> Confidence:
     """The confidence of ``reg`` (see the module), from the source cloud (N, 3) of R_g in its
-    metric camera frame, the object's ``surface``, R_g's ``view`` and object ``mask``."""
+    metric camera frame, the object's ``surface``, R_g's ``view`` and object ``mask``, and how
+    far [m] each effector's contact moved onto the object."""
     flat = reg.candidates.reshape(-1, 4, 4)
     best = flat[np.ravel_multi_index((reg.iteration - 1, reg.turn), reg.overlaps.shape)]
     size = float(np.linalg.norm(np.ptp(surface.points, axis=0)))
@@ -117,4 +125,12 @@ def confidence(
         reasons.append(f"margin {margin:.3f} over another pose < {cfg.min_margin}")
     if iou < cfg.min_silhouette_iou:
         reasons.append(f"silhouette IoU {iou:.2f} < {cfg.min_silhouette_iou}")
-    return Confidence(reg.overlap, runner_up, rival, margin, iou, bool(reasons), tuple(reasons))
+    for effector, gap in contact_gaps_m.items():
+        if gap > cfg.max_contact_gap_m:
+            reasons.append(
+                f"{effector} lands {100 * gap:.1f} cm off the object > {cfg.max_contact_gap_m} m"
+            )
+    gaps = {e: float(g) for e, g in contact_gaps_m.items()}
+    return Confidence(
+        reg.overlap, runner_up, rival, margin, iou, gaps, bool(reasons), tuple(reasons)
+    )

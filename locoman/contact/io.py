@@ -24,7 +24,7 @@ PLOTS_DIR = "plots"
 
 CONTACTS = ArtifactSchema(
     "contact.transfer",
-    3,
+    4,
     "contacts",
     (
         Field("method", "str", (), "-", "registration or naive"),
@@ -48,6 +48,7 @@ CONTACTS = ArtifactSchema(
         Field("runner_up", "float64", (), "-", "best overlap of a hypothesis placing it otherwise"),
         Field("margin", "float64", (), "-", "overlap - runner_up"),
         Field("silhouette_iou", "float64", (), "-", "registered silhouette vs R_g's mask"),
+        Field("contact_gaps_m", "float64", ("C",), "m", "how far each L moved onto the object"),
         Field("doubtful", "bool", (), "-", "a confidence signal below its threshold"),
         Field("used", "str", (), "-", "whose contacts L holds: registration or naive"),
         Field("T_world_pelvis", "float64", (4, 4), "m", "human pelvis placed in the scene"),

@@ -78,6 +78,14 @@ def apply(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.matmul(points, np.swapaxes(matrix[..., :3, :3], -1, -2)) + matrix[..., None, :3, 3]
 
 
+def nearest_rotation(linear: np.ndarray) -> np.ndarray:
+    """The rotation (3, 3) nearest a linear map (3, 3) in the Frobenius norm: U V^T of its
+    SVD, with the last axis flipped where that would reflect."""
+    u, _, vt = np.linalg.svd(linear)
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
 def rotation_angle_deg(rot_a: np.ndarray, rot_b: np.ndarray) -> float:
     """Geodesic angle between two rotations [deg]."""
     cos = 0.5 * (np.trace(np.asarray(rot_a).T @ np.asarray(rot_b)) - 1.0)

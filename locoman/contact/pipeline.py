@@ -107,6 +107,7 @@ def write_transfer(
             "runner_up": np.array(r.confidence.runner_up),
             "margin": np.array(r.confidence.margin),
             "silhouette_iou": np.array(r.confidence.silhouette_iou),
+            "contact_gaps_m": np.array([r.confidence.contact_gaps_m[e] for e in inputs.effectors]),
             "doubtful": np.array(r.confidence.doubtful),
             "used": np.array(r.used),
             "T_world_pelvis": r.T_world_pelvis,
