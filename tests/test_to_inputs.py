@@ -48,6 +48,7 @@ def _contacts(folder: Path, surfaces: tuple[str, str]) -> Path:
         "runner_up": 0.0,
         "margin": 0.9,
         "silhouette_iou": 0.8,
+        "contact_gaps_m": np.zeros(2),
         "doubtful": False,
         "used": "registration",
         "T_world_pelvis": pose,
