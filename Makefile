@@ -37,7 +37,7 @@ $(LEARNED): $(STAMP)
 # 4), its evaluation and paper B. Arm 2: S1's and S2's perception and keyframes meanwhile,
 # then (`after:`) their solves and evaluations (S2's solve, about 5 min, the longest stage).
 INPUTS := scene generate masks clouds contacts retarget
-ARM_TINY := validate $(INPUTS:%=%@tiny) solve@tiny figures@tiny evaluate@tiny \
+ARM_TINY := validate $(INPUTS:%=%@tiny) solve@tiny figures@tiny evaluate@tiny execute@tiny \
 	scene@mm_pick_place demos kmp_fit hqp_replay
 ARM_REST := after:validate $(INPUTS:%=%@s1_basket) $(INPUTS:%=%@s2_trolley) after:solve@tiny \
 	solve@s1_basket evaluate@s1_basket solve@s2_trolley evaluate@s2_trolley

@@ -78,6 +78,8 @@ WALL_CLOCK_KEYS = frozenset(
         "hqp_step_median_s",
         "hqp_step_p99_s",
         "realtime_factor",
+        "qp_time_median_ms",
+        "qp_time_p99_ms",
     }
 )
 

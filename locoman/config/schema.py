@@ -13,6 +13,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from locoman.config.contacts import ContactsCfg
+from locoman.config.execute import ExecuteCfg
 from locoman.config.figures import FiguresCfg
 from locoman.config.perception import PerceptionCfg
 from locoman.config.retarget import RetargetCfg
@@ -294,6 +295,7 @@ class RootCfg:
     retarget: RetargetCfg = field(default_factory=RetargetCfg)
     solve: SolveCfg = field(default_factory=SolveCfg)
     evaluate: EvaluateCfg = field(default_factory=EvaluateCfg)
+    execute: ExecuteCfg = field(default_factory=ExecuteCfg)
     figures: FiguresCfg = field(default_factory=FiguresCfg)
 
     def check(self) -> list[tuple[str, str]]:

@@ -1,0 +1,107 @@
+"""Section ``execute``: the G1 carries out the TO's trajectory in MuJoCo's forward dynamics.
+
+The controller is a task-space inverse-dynamics QP (:mod:`locoman.execute`); these are its
+gains, weights and limits, and the checks of the executed motion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class TaskCfg:
+    """One tracking task: a PD law on its error, weighted in the QP's cost.
+
+    The task asks for the acceleration ``a_ref + kp e + kd e_dot`` of its quantity and the QP
+    pays ``weight * |J a + J_dot v - that|^2`` for missing it.
+
+    Attributes:
+        weight: Weight in the cost [1 per (m/s^2)^2 or (rad/s^2)^2].
+        kp: Proportional gain [1/s^2].
+        kd: Derivative gain [1/s]; 0 means critically damped, 2 sqrt(kp).
+    """
+
+    weight: float
+    kp: float
+    kd: float = 0.0
+
+    @property
+    def damping(self) -> float:
+        """The derivative gain in use [1/s]."""
+        return self.kd if self.kd > 0.0 else 2.0 * self.kp**0.5
+
+
+@dataclass
+class ExecuteCfg:
+    """Stage ``execute``: the tracking controller and the checks of what it carried out.
+
+    Attributes:
+        timestep_s: MuJoCo's step, which is also the controller's period [s].
+        settle_s: Time the robot holds the first node before the motion starts [s]: the
+            contacts of MuJoCo's soft floor settle first.
+        hold_s: Time it holds the last node after the motion ends [s]: an object set
+            down must stay where it was put.
+        com: Centre-of-mass task (3 rows).
+        base_orientation: The pelvis's orientation (3 rows).
+        swing_foot: A foot off the ground: its sole's pose (6 rows).
+        hand: A hand: its palm's pose (6 rows), holding or not.
+        posture: Every joint's angle (29 rows).
+        force_weight: Weight of the contact wrenches' distance from the TO's [1/N^2].
+        contact_kd: Damping of a stance foot's velocity in its contact constraint [1/s].
+        min_normal_force_n: Least normal force a stance foot keeps [N].
+        friction: Friction coefficient of the feet's linearised cones (the TO's floor).
+        support_scale: The sole the QP may put its centre of pressure on, as a fraction of
+            the foot box's half length and half width: on MuJoCo's soft floor a CoP on the
+            edge rolls the foot over it.
+        torque_margin: Fraction of each joint's torque limit the QP may use.
+        fallen_height_m: The pelvis below this height counts as a fall [m].
+        fallen_tilt_rad: The pelvis tilted more than this counts as a fall [rad].
+        goal_tol_m: An object's final distance from its goal allowed [m].
+        goal_yaw_tol_rad: Its final yaw error allowed [rad].
+        penetration_tol_m: Deepest unscheduled contact allowed [m] (the evaluation's bound).
+        filmstrip_frames: Frames in the executed-beside-planned filmstrip.
+        video: Write the MP4 (a test leaves it out).
+    """
+
+    timestep_s: float = 0.001
+    settle_s: float = 0.3
+    hold_s: float = 1.0
+    com: TaskCfg = field(default_factory=lambda: TaskCfg(weight=10.0, kp=100.0))
+    base_orientation: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=100.0))
+    swing_foot: TaskCfg = field(default_factory=lambda: TaskCfg(weight=10.0, kp=400.0))
+    hand: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=200.0))
+    posture: TaskCfg = field(default_factory=lambda: TaskCfg(weight=0.1, kp=100.0))
+    force_weight: float = 1e-4
+    contact_kd: float = 20.0
+    min_normal_force_n: float = 5.0
+    friction: float = 0.7
+    support_scale: float = 1.0
+    torque_margin: float = 1.0
+    fallen_height_m: float = 0.5
+    fallen_tilt_rad: float = 0.6
+    goal_tol_m: float = 0.05
+    goal_yaw_tol_rad: float = 0.2
+    penetration_tol_m: float = 0.02
+    filmstrip_frames: int = 8
+    video: bool = True
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if not 0.0 < self.timestep_s <= 0.005:
+            errors.append(("timestep_s", "the controller's period must be in (0, 5 ms]"))
+        if self.settle_s < 0.0 or self.hold_s < 0.0:
+            errors.append(("settle_s", "settle_s and hold_s must be >= 0 s"))
+        for name in ("com", "base_orientation", "swing_foot", "hand", "posture"):
+            task = getattr(self, name)
+            if task.weight < 0.0 or task.kp < 0.0 or task.kd < 0.0:
+                errors.append((name, "weight, kp and kd must be >= 0"))
+        if not 0.0 < self.support_scale <= 1.0:
+            errors.append(("support_scale", "must be in (0, 1]: a fraction of the sole"))
+        if not 0.0 < self.torque_margin <= 1.0:
+            errors.append(("torque_margin", "must be in (0, 1]: a fraction of each limit"))
+        if self.friction <= 0.0 or self.min_normal_force_n < 0.0 or self.force_weight <= 0.0:
+            errors.append(("friction", "friction and force_weight > 0, min_normal_force_n >= 0"))
+        if self.filmstrip_frames < 1:
+            errors.append(("filmstrip_frames", "must be >= 1"))
+        return errors

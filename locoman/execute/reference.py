@@ -1,0 +1,233 @@
+"""The TO's trajectory as the controller's reference, sampled at the controller's period.
+
+The TO gives nodes 20-80 ms apart (``trajectory.npz``). Between them:
+    * the configuration (base position, roll-pitch-yaw, joints) is linear along each step
+      (as the evaluation replays it), the velocity linear from node k's to node k + 1's and
+      the acceleration constant over the step, (v_{k+1} - v_k) / dt_k: the TO's implicit
+      Euler step, so the feedforward agrees with the TO's contact wrenches (a spline through
+      the nodes does not: on tiny its centre of mass accelerates at 13 m/s^2 where the TO's
+      wrenches give 3);
+    * a contact and its wrench are node k's over the step from node k to k + 1 (the TO's
+      rate at node k is what its step integrates).
+Before the motion the robot holds the first node for ``settle_s``, standing on both soles,
+after it the last for ``hold_s``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+
+from locoman.execute.model import BASE, PALMS, SOLES, execution_model
+from locoman.scene.rotations import rpy_to_matrix
+from locoman.sim.evaluate import euler_rates_to_world
+
+#: Frames with a pose reference: the soles, the palms, the pelvis.
+TRACKED_FRAMES = (*SOLES, *PALMS, BASE)
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameReference:
+    """A frame's reference at every sample, world axes.
+
+    Attributes:
+        position: (T, 3) [m].
+        rotation: (T, 3, 3).
+        velocity: (T, 6) linear [m/s] and angular [rad/s] velocity.
+        acceleration: (T, 6) classical linear [m/s^2] and angular [rad/s^2] acceleration.
+    """
+
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """The planned motion at the controller's samples.
+
+    Attributes:
+        time: (T,) [s] from the start of the settling.
+        motion_start_s: When the TO's first node is left [s].
+        node: (T,) the TO's node each sample lies after (its step's first node).
+        q: (T, 36) Pinocchio configuration.
+        v: (T, 35) Pinocchio velocity [m/s, rad/s].
+        a: (T, 35) its derivative [m/s^2, rad/s^2].
+        com: (T, 3) centre of mass [m]; ``com_velocity``, ``com_acceleration`` the same
+            shape [m/s, m/s^2].
+        frames: Frame name -> its :class:`FrameReference` (:data:`TRACKED_FRAMES`).
+        foot_contact: (T, 2) whether each foot (left, right) is on its support.
+        foot_wrench: (T, 2, 6) the TO's wrench on each sole centre, world axes [N, N m].
+        hand_object: (T, 2) object each hand holds, -1 for none.
+        hand_wrench: (T, 2, 6) the TO's wrench of the object on each hand, world axes.
+        object_q: (T, M, 6) each object's planned pose (p [m], rpy [rad]).
+    """
+
+    time: np.ndarray
+    motion_start_s: float
+    node: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    com: np.ndarray
+    com_velocity: np.ndarray
+    com_acceleration: np.ndarray
+    frames: dict[str, FrameReference]
+    foot_contact: np.ndarray
+    foot_wrench: np.ndarray
+    hand_object: np.ndarray
+    hand_wrench: np.ndarray
+    object_q: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+
+def node_times(traj: dict[str, np.ndarray]) -> np.ndarray:
+    """(N,) time of each node [s] (``dt[k]`` is the step from node k to k + 1)."""
+    return np.r_[0.0, np.cumsum(traj["dt"][:-1])]
+
+
+def pin_state(
+    q35: np.ndarray, q35_dot: np.ndarray, q35_ddot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pinocchio (q, v, a) of a TO configuration (position, rpy, joints) and its two rates.
+
+    v's base part is the twist in the base frame, (R^T p_dot, R^T omega) with omega =
+    E(rpy) rpy_dot; a is its derivative, (R^T p_ddot - omega_b x R^T p_dot, R^T omega_dot)
+    with omega_b = R^T omega and omega_dot = E rpy_ddot + (dE/dt) rpy_dot."""
+    rpy, rpy_dot = q35[3:6], q35_dot[3:6]
+    rotation = rpy_to_matrix(rpy)
+    rates = euler_rates_to_world(rpy)
+    omega = rates @ rpy_dot
+    # dE/dt rpy_dot by a forward difference along rpy_dot (E is smooth; 1e-7 rad).
+    eps = 1e-7
+    rates_dot = (euler_rates_to_world(rpy + eps * rpy_dot) - rates) / eps
+    omega_dot = rates @ q35_ddot[3:6] + rates_dot @ rpy_dot
+    linear = rotation.T @ q35_dot[:3]
+    omega_b = rotation.T @ omega
+    q = np.concatenate([q35[:3], pin.Quaternion(rotation).coeffs(), q35[6:]])
+    v = np.concatenate([linear, omega_b, q35_dot[6:]])
+    a = np.concatenate(
+        [
+            rotation.T @ q35_ddot[:3] - np.cross(omega_b, linear),
+            rotation.T @ omega_dot,
+            q35_ddot[6:],
+        ]
+    )
+    return q, v, a
+
+
+def interpolate_nodes(
+    traj: dict[str, np.ndarray], t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(q35, q35_dot, q35_ddot) at times ``t`` [s] in [0, duration].
+
+    Along step k the acceleration is the TO's, a_k = (v_{k+1} - v_k) / dt_k (what node k's
+    wrenches give its momentum), the rate linear from v_k to v_{k+1}, and the configuration
+    that rate's integral from node k's, offset linearly along the step so that it reaches
+    node k + 1's: q(tau) = q_k + tau v_k + tau^2 a_k / 2 + tau (q_{k+1} - q_k - dt_k (v_k +
+    v_{k+1}) / 2) / dt_k, whose rate is the linear one plus that offset's (dt_k a_k / 2, the
+    implicit Euler step's lead)."""
+    t_nodes = node_times(traj)
+    q, v = traj["q"], traj["v"]
+    k = np.clip(np.searchsorted(t_nodes, t, side="right") - 1, 0, len(t_nodes) - 2)
+    h = (t_nodes[k + 1] - t_nodes[k])[:, None]
+    tau = np.clip(t[:, None] - t_nodes[k][:, None], 0.0, h)
+    acceleration = (v[k + 1] - v[k]) / h
+    lead = (q[k + 1] - q[k] - h * (v[k] + v[k + 1]) / 2) / h
+    position = q[k] + tau * (v[k] + lead) + 0.5 * tau**2 * acceleration
+    rate = v[k] + lead + tau * acceleration
+    return position, rate, acceleration
+
+
+def build_reference(
+    traj: dict[str, np.ndarray], timestep_s: float, settle_s: float, hold_s: float
+) -> Reference:
+    """Sample the TO's trajectory ``traj`` every ``timestep_s`` [s], ``settle_s`` [s] at
+    the first node before it and ``hold_s`` [s] at the last after it."""
+    t_nodes = node_times(traj)
+    duration = float(t_nodes[-1])
+    time = np.arange(0.0, settle_s + duration + hold_s + 0.5 * timestep_s, timestep_s)
+    t = np.clip(time - settle_s, 0.0, duration)
+    moving = (time >= settle_s) & (time <= settle_s + duration)
+    q35, q35_dot, q35_ddot = interpolate_nodes(traj, t)
+    q35_dot[~moving] = 0.0
+    q35_ddot[~moving] = 0.0
+    n = len(t_nodes)
+    node = np.clip(np.searchsorted(t_nodes, t, side="right") - 1, 0, n - 2)
+    # A foot stands over a step when the TO has it down at both of its nodes (it does not
+    # move along the step); the TO's wrenches, rates at the nodes, are linear between them.
+    frac = np.clip((t - t_nodes[node]) / (t_nodes[node + 1] - t_nodes[node]), 0.0, 1.0)
+    w = frac[:, None, None]
+    feet = traj["feet_contact"][node] & traj["feet_contact"][node + 1]
+    settling = time < settle_s
+    feet[settling] = True
+    both = (traj["hand_object"][node] >= 0) & (traj["hand_object"][node + 1] >= 0)
+    hands = np.where(both, traj["hand_object"][node + 1], -1)
+    foot_wrench = (1 - w) * traj["foot_wrench"][node] + w * traj["foot_wrench"][node + 1]
+    hand_wrench = (1 - w) * traj["hand_wrench"][node] + w * traj["hand_wrench"][node + 1]
+    foot_wrench = np.where(feet[..., None], foot_wrench, 0.0)
+    hand_wrench = np.where((hands >= 0)[..., None], hand_wrench, 0.0)
+    # Node 0's wrenches belong to its step (often all the weight on one foot, the CoM
+    # falling into the first step): while settling the QP's least-norm wrenches, the CoP
+    # mid-sole, serve instead.
+    foot_wrench[settling] = 0.0
+    object_q = (1 - w) * traj["object_q"][node] + w * traj["object_q"][node + 1]
+    return _with_kinematics(
+        time, settle_s, node, q35, q35_dot, q35_ddot, feet, foot_wrench, hands, hand_wrench,
+        object_q,
+    )  # fmt: skip
+
+
+def _with_kinematics(
+    time, settle_s, node, q35, q35_dot, q35_ddot, feet, foot_wrench, hands, hand_wrench, object_q
+) -> Reference:
+    model = execution_model()
+    data = model.createData()
+    T = len(time)
+    q = np.zeros((T, model.nq))
+    v = np.zeros((T, model.nv))
+    a = np.zeros((T, model.nv))
+    for i in range(T):
+        q[i], v[i], a[i] = pin_state(q35[i], q35_dot[i], q35_ddot[i])
+    com = np.zeros((T, 3))
+    com_velocity = np.zeros((T, 3))
+    com_acceleration = np.zeros((T, 3))
+    ids = {name: model.getFrameId(name) for name in TRACKED_FRAMES}
+    frame_rows = {name: ([], [], [], []) for name in TRACKED_FRAMES}
+    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    for i in range(T):
+        pin.forwardKinematics(model, data, q[i], v[i], a[i])
+        pin.updateFramePlacements(model, data)
+        pin.centerOfMass(model, data, q[i], v[i], a[i])
+        com[i], com_velocity[i], com_acceleration[i] = data.com[0], data.vcom[0], data.acom[0]
+        for name, f in ids.items():
+            rows = frame_rows[name]
+            rows[0].append(data.oMf[f].translation.copy())
+            rows[1].append(data.oMf[f].rotation.copy())
+            rows[2].append(pin.getFrameVelocity(model, data, f, world).vector.copy())
+            rows[3].append(pin.getFrameClassicalAcceleration(model, data, f, world).vector.copy())
+    frames = {
+        name: FrameReference(*(np.array(r) for r in rows)) for name, rows in frame_rows.items()
+    }
+    return Reference(
+        time=time,
+        motion_start_s=settle_s,
+        node=node,
+        q=q,
+        v=v,
+        a=a,
+        com=com,
+        com_velocity=com_velocity,
+        com_acceleration=com_acceleration,
+        frames=frames,
+        foot_contact=feet,
+        foot_wrench=foot_wrench,
+        hand_object=hands,
+        hand_wrench=hand_wrench,
+        object_q=object_q,
+    )
