@@ -401,6 +401,9 @@ class ContactCfg:
             |s| <= slack_max_m [m]: with the slack cost (Table I) alone a converged solve
             could sink a support or a hand by centimetres (``docs/deviations.md``). None:
             unbounded, the cost alone.
+        sole_support_scale: The part of each sole (3b) lets the CoP use, as a fraction of
+            its half length and half width: 1 is the whole foot box (the paper); below 1
+            leaves a controller room to correct on a soft floor (``docs/execution.md``).
     """
 
     floor_friction: float = 0.8
@@ -408,9 +411,12 @@ class ContactCfg:
     prehensile: bool = False
     palm_half_extents_m: list[float] = field(default_factory=lambda: [0.04, 0.03])
     slack_max_m: float | None = 0.004
+    sole_support_scale: float = 1.0
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
+        if not 0.0 < self.sole_support_scale <= 1.0:
+            errors.append(("sole_support_scale", "must be in (0, 1]: a fraction of the sole"))
         if self.floor_friction <= 0.0 or self.stiffness <= 0.0:
             errors.append(("stiffness", "friction and stiffness must be > 0"))
         if len(self.palm_half_extents_m) != 2 or min(self.palm_half_extents_m) <= 0.0:

@@ -3,20 +3,23 @@
 Unknowns x = (a, w): the joint accelerations a (35,) [m/s^2, rad/s^2] and the wrench w_c (6,)
 [N, N m] of each stance foot at its sole centre, world axes. The torques follow from them:
 
-    M a + h = S^T tau + sum_c J_c^T w_c + sum_h J_h^T w_h                   floating-base dynamics
+    M a + h = S^T tau + sum_c J_c^T w_c + sum_h J_h^T w_h         floating-base dynamics
 
 where w_h is the TO's wrench of the held object on each hand (the object is not in the model;
 the plan's force is fed forward and MuJoCo's contact returns what the object really pushes).
 
-    min_x   sum_t weight_t |A_t a - b_t|^2 + force_weight |w - w_TO|^2 + eps |a|^2
-    s.t.    M_b a - J_c,b^T w = -h_b + J_h,b^T w_h                  (6 rows: the base is unactuated)
-            J_c a + J_dot_c v = -contact_kd J_c v                   (6 rows per stance foot)
-            C_c w_c <= d_c                                          (3a)-(3c), f_z >= f_min
-            |M_j a + h_j - J_c,j^T w - J_h,j^T w_h| <= tau_max      torque limits (29 rows)
+    min  sum_t weight_t |A_t a - b_t|^2 + force_weight |w - w_TO|_W^2 + eps |a|^2
+    s.t. M_b a - J_c,b^T w = -h_b + J_h,b^T w_h           6 rows: the base is unactuated
+         J_c a + J_dot_c v = -kd J_c v + (0, kp e_flat)   6 rows per stance foot
+         C_c w_c <= d_c                                   the sole's contact wrench cone
+         |M_j a + h_j - J_c,j^T w - J_h,j^T w_h| <= tau_max   29 rows: torque limits
 
-with the tasks t of :mod:`locoman.execute.tasks`: the centre of mass, the pelvis's orientation,
-each swing foot's and each hand's pose, the joints' posture. DAQP solves it (dense, about 47
-unknowns; :mod:`benchmarks.execute_step` measured it against proxsuite).
+e_flat turns a stance sole flat (:func:`flat_error`): MuJoCo's floor is soft, and a sole
+tilted by a fraction of a degree stands on two corners. W (:func:`wrench_metric`) weighs a
+moment as the force that makes it at the sole's edge. The tasks t are those of
+:mod:`locoman.execute.tasks`: the centre of mass, the pelvis's orientation, each swing foot's
+and each hand's pose, the joints' posture. DAQP solves the dense QP (about 47 unknowns;
+``benchmarks/execute_step.py`` measures it).
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ class Command:
         foot_wrench: (2, 6) each foot's wrench (world axes, at the sole centre) [N, N m];
             zero for a swing foot.
         stance: (2,) which feet the QP held on the ground.
+        limits_dropped: The QP had no solution within the torque limits and was solved
+            without them (the torques are clipped to the limits all the same).
         solve_time_s: The QP's assembly and solve [s].
     """
 
@@ -57,7 +62,28 @@ class Command:
     a: np.ndarray
     foot_wrench: np.ndarray
     stance: np.ndarray
+    limits_dropped: bool
     solve_time_s: float
+
+
+def flat_error(rotation: np.ndarray) -> np.ndarray:
+    """(3,) rotation [rad], world axes, that lays a sole of orientation ``rotation`` flat
+    (its z up) without turning it about the vertical: log3(R_flat R^T)."""
+    yaw = np.arctan2(rotation[1, 0], rotation[0, 0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    flat = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return pin.log3(flat @ rotation.T)
+
+
+def wrench_metric(moment_arm: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(6, 6) W of the wrench regularisation |w - w_TO|_W^2, world axes: a moment counts as
+    the force that makes it at the sole's edge (tau_x / Y, tau_y / X, tau_z / (mu max(X, Y))
+    in the sole's frame ``rotation``). With an identity W a moment of 1 N m costs what 1 N
+    does, the least-norm wrench puts each foot's CoP on its edge, and MuJoCo's foot rolls."""
+    local = np.diag(np.r_[np.ones(3), 1.0 / np.asarray(moment_arm) ** 2])
+    turn = np.zeros((6, 6))
+    turn[:3, :3] = turn[3:, 3:] = rotation
+    return turn @ local @ turn.T
 
 
 class InverseDynamicsQp:
@@ -68,9 +94,12 @@ class InverseDynamicsQp:
             (:func:`locoman.execute.model.execution_model`).
         cfg: Gains, weights and limits.
         sole_half_extents: (2,) the sole's half length and half width [m].
+        friction: The floor's friction coefficient the TO planned with [-].
     """
 
-    def __init__(self, model: pin.Model, cfg: ExecuteCfg, sole_half_extents: np.ndarray) -> None:
+    def __init__(
+        self, model: pin.Model, cfg: ExecuteCfg, sole_half_extents: np.ndarray, friction: float
+    ) -> None:
         self.model = model
         self.data = model.createData()
         self.cfg = cfg
@@ -80,11 +109,13 @@ class InverseDynamicsQp:
         self._palms = [model.getFrameId(name) for name in PALMS]
         self._base = model.getFrameId(BASE)
         self._cone = local_wrench_rows(
-            cfg.friction, cfg.support_scale * np.asarray(sole_half_extents)
+            friction, cfg.support_scale * np.asarray(sole_half_extents, dtype=float)
         )
         self._cone_bound = wrench_bounds(cfg.min_normal_force_n)
+        half = np.asarray(sole_half_extents, dtype=float)
+        # A moment about the sole's x axis moves the CoP along y, and so on (wrench_metric).
+        self._moment_arm = np.array([half[1], half[0], friction * half.max()])
         self._zero = np.zeros(self.nv)
-        self.last_qp: tuple[np.ndarray, ...] | None = None
 
     def _frame(self, frame: int, q: np.ndarray) -> tuple[np.ndarray, ...]:
         """(J (6, nv), position, rotation, velocity (6,), drift (6,)) of a frame, world axes
@@ -118,7 +149,7 @@ class InverseDynamicsQp:
             SolverError: If DAQP finds the QP infeasible.
         """
         start = time.perf_counter()
-        cfg, m, d, nv = self.cfg, self.model, self.data, self.nv
+        cfg, d, nv = self.cfg, self.data, self.nv
         self._kinematics(q, v)
         mass_matrix = np.triu(d.M) + np.triu(d.M, 1).T
         h = d.nle
@@ -155,9 +186,11 @@ class InverseDynamicsQp:
             hessian[:nv, :nv] += weight * a_rows.T @ a_rows
             gradient[:nv] -= weight * a_rows.T @ b
         hessian[:nv, :nv] += _REGULARISATION * np.eye(nv)
-        hessian[nv:, nv:] += cfg.force_weight * np.eye(nw)
-        w_ref = np.concatenate([ref.foot_wrench[i, k] for k in active]) if active else np.zeros(0)
-        gradient[nv:] -= cfg.force_weight * w_ref
+        for c, k in enumerate(active):
+            block = slice(nv + 6 * c, nv + 6 * c + 6)
+            weight = cfg.force_weight * wrench_metric(self._moment_arm, feet[k][2])
+            hessian[block, block] += weight
+            gradient[block] -= weight @ ref.foot_wrench[i, k]
         # The held objects' planned wrenches, as generalised forces.
         external = np.zeros(nv)
         for k in range(2):
@@ -174,20 +207,21 @@ class InverseDynamicsQp:
         lower = [bias[:6]]
         sense = [np.full(6, _EQUALITY)]
         for c, k in enumerate(active):
-            jac, _, _, vel, drift = feet[k]
+            jac, _, rotation, vel, drift = feet[k]
             rows_c = np.zeros((6, n))
             rows_c[:, :nv] = jac
             target = -drift - cfg.contact_kd * vel
+            target[3:] += cfg.contact_kp * flat_error(rotation)
             blocks.append(rows_c)
             upper.append(target)
             lower.append(target)
             sense.append(np.full(6, _EQUALITY))
-            cone = np.zeros((11, n))
+            cone = np.zeros((len(self._cone), n))
             cone[:, nv + 6 * c : nv + 6 * c + 6] = world_wrench_rows(self._cone, feet[k][2])
             blocks.append(cone)
             upper.append(self._cone_bound)
-            lower.append(np.full(11, -1e20))
-            sense.append(np.zeros(11, dtype=int))
+            lower.append(np.full(len(self._cone), -1e20))
+            sense.append(np.zeros(len(self._cone), dtype=int))
         blocks.append(dyn[6:])
         upper.append(self.tau_max + bias[6:])
         lower.append(-self.tau_max + bias[6:])
@@ -196,17 +230,25 @@ class InverseDynamicsQp:
         bu, bl = np.concatenate(upper), np.concatenate(lower)
         senses = np.concatenate(sense).astype(np.int32)
         x, _, flag, _ = daqp.solve(hessian, gradient, a_con, bu, bl, senses)
+        dropped = flag < 0
+        if dropped:
+            # No torques within the limits can hold the contacts (a landing foot's impact,
+            # a motion beyond a joint's limit): solve without the limits, MuJoCo's motors
+            # clip the torques, and the step is counted (Command.limits_dropped).
+            rows = len(a_con) - (nv - 6)
+            x, _, flag, _ = daqp.solve(
+                hessian, gradient, a_con[:rows], bu[:rows], bl[:rows], senses[:rows]
+            )
         if flag < 0:
             raise SolverError(
-                f"the inverse-dynamics QP has no solution at t = {ref.time[i]:.3f} s (DAQP "
-                f"exit flag {flag}): the torque limits or the friction cones cannot carry "
-                "the motion there"
+                f"the inverse-dynamics QP has no solution at t = {ref.time[i]:.3f} s, even "
+                f"without the torque limits (DAQP exit flag {flag}): the contact constraints "
+                "contradict each other there"
             )
-        self.last_qp = (hessian, gradient, a_con, bu, bl, senses, x)
         a = x[:nv]
         tau = (dyn[6:] @ x) - bias[6:]
         tau = np.clip(tau, -self.tau_max, self.tau_max)
         wrench = np.zeros((2, 6))
         for c, k in enumerate(active):
             wrench[k] = x[nv + 6 * c : nv + 6 * c + 6]
-        return Command(tau, a, wrench, stance.copy(), time.perf_counter() - start)
+        return Command(tau, a, wrench, stance.copy(), dropped, time.perf_counter() - start)

@@ -126,6 +126,7 @@ def execution_metrics(
         "com_rmse_m": rmse(_coms(executed.q), ref.com[:n]),
         "foot_slip_max_m": stance_slip(executed.stance, actual[:, 1:3]),
         "peak_torque_fraction": float(np.max(np.abs(executed.tau) / limits)) if n else 0.0,
+        "steps_beyond_torque_limits": int(executed.limits_dropped.sum()),
         "qp_time_median_ms": float(np.median(executed.solve_time_s) * 1e3) if n else 0.0,
         "qp_time_p99_ms": float(np.percentile(executed.solve_time_s, 99) * 1e3) if n else 0.0,
     }

@@ -31,7 +31,7 @@ from locoman.execute.model import PALMS
 from locoman.execute.reference import Reference, build_reference
 from locoman.execute.simulate import Execution, execute, execution_mjmodel
 from locoman.scene import g1
-from locoman.scene.io import load_state
+from locoman.scene.io import load_scene_spec, load_state
 from locoman.scene.rotations import quat_xyzw_to_rpy, wxyz_to_xyzw
 from locoman.sim import camera
 from locoman.sim.evaluate import scene_qpos
@@ -89,10 +89,12 @@ def _pairs(
             j = min(int(i), len(executed.time) - 1)
             t = ref.time[i]
             done = "" if j == i else " (stopped)"
+            label = f"executed t={t:.2f}s{done}"
+            planned = _planned_qpos(model, ref, names, i)
             yield (
-                _frame(renderer, model, data, executed.qpos[j], bearing, f"executed t={t:.2f}s{done}"),
-                _frame(renderer, model, data, _planned_qpos(model, ref, names, i), bearing, "planned"),
-            )  # fmt: skip
+                _frame(renderer, model, data, executed.qpos[j], bearing, label),
+                _frame(renderer, model, data, planned, bearing, "planned"),
+            )
 
 
 def filmstrip(model, executed, ref, names, frames: int, bearing: float) -> np.ndarray:
@@ -154,8 +156,8 @@ def execute_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: Execu
     traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
     names = [str(name) for name in traj["object_names"]]
     ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
-    model = execution_mjmodel(scene_dir, cfg)
-    executed = execute(model, ref, names, cfg)
+    model = execution_mjmodel(load_scene_spec(scene_dir), cfg)
+    executed = execute(model, ref, names, cfg, float(traj["floor_friction"]))
     metrics = execution_metrics(model, executed, ref, traj, cfg)
     write_executed_mcap(
         out_dir / MCAP_FILE, model, executed, ref, names, load_state(scene_dir)["qpos"]

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -22,15 +21,15 @@ from locoman.execute.model import execution_model, torque_limits
 from locoman.execute.reference import Reference
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
-from locoman.scene.io import load_scene_spec
 from locoman.scene.rotations import quat_wxyz_to_matrix, rpy_to_matrix
 
 log = logging.getLogger(__name__)
 
 
-def execution_mjmodel(scene_dir: Path, cfg: ExecuteCfg) -> mujoco.MjModel:
-    """The scene with a torque motor on every G1 joint, stepping every ``cfg.timestep_s``."""
-    spec = load_scene_spec(scene_dir)
+def execution_mjmodel(spec: mujoco.MjSpec, cfg: ExecuteCfg) -> mujoco.MjModel:
+    """The scene ``spec`` (the scene stage's, :func:`locoman.scene.io.load_scene_spec`;
+    changed in place) with a torque motor on every G1 joint, stepping every
+    ``cfg.timestep_s``."""
     spec.option.timestep = cfg.timestep_s
     limits = torque_limits(execution_model())
     for name, limit in zip(g1.G1_JOINT_NAMES, limits, strict=True):
@@ -108,6 +107,7 @@ class Execution:
         tau: (T, 29) the torques applied [N m].
         foot_wrench: (T, 2, 6) the QP's wrench on each foot [N, N m].
         stance: (T, 2) feet the QP held on the ground.
+        limits_dropped: (T,) steps solved without the torque limits (Command).
         object_position: (T, M, 3) [m]; ``object_rotation`` (T, M, 3, 3).
         qpos: (T, nq) MuJoCo's state (for the pictures).
         solve_time_s: (T,) the QP's time per step [s].
@@ -122,6 +122,7 @@ class Execution:
     tau: np.ndarray
     foot_wrench: np.ndarray
     stance: np.ndarray
+    limits_dropped: np.ndarray
     object_position: np.ndarray
     object_rotation: np.ndarray
     qpos: np.ndarray
@@ -134,9 +135,8 @@ def initial_qpos(
     model: mujoco.MjModel, states: StateMap, ref: Reference, objects: list[str]
 ) -> np.ndarray:
     """MuJoCo's qpos at the reference's first sample: the G1 and each object where the TO
-    starts."""
+    starts (any other body where the model puts it)."""
     data = mujoco.MjData(model)
-    data.qpos[:] = model.key("home").qpos
     states.set_pin_state(data, ref.q[0], np.zeros(ref.v.shape[1]))
     for j, name in enumerate(objects):
         adr = states.object_qpos[name]
@@ -147,15 +147,22 @@ def initial_qpos(
 
 
 def execute(
-    model: mujoco.MjModel, ref: Reference, objects: list[str], cfg: ExecuteCfg, steps: int = -1
+    model: mujoco.MjModel,
+    ref: Reference,
+    objects: list[str],
+    cfg: ExecuteCfg,
+    friction: float,
+    steps: int = -1,
 ) -> Execution:
     """Run the controller on MuJoCo's forward dynamics along ``ref``, ``steps`` steps (all
-    by default); stops early when the QP fails or the pelvis falls (``cfg.fallen_*``)."""
+    by default), the soles' cones with the TO's floor ``friction``; stops early when the QP
+    fails or the pelvis falls (``cfg.fallen_*``)."""
     states = StateMap.of(model, objects)
     data = mujoco.MjData(model)
     data.qpos[:] = initial_qpos(model, states, ref, objects)
     mujoco.mj_forward(model, data)
-    controller = InverseDynamicsQp(execution_model(), cfg, contact_frames().sole_half_extents)
+    half = contact_frames().sole_half_extents
+    controller = InverseDynamicsQp(execution_model(), cfg, half, friction)
     total = len(ref) if steps < 0 else min(steps, len(ref))
     log_rows: list[tuple] = []
     stopped = ""
@@ -199,6 +206,7 @@ def _execution(rows, model, states, objects, completed, stopped) -> Execution:
         tau=np.array([r[3].tau for r in rows]),
         foot_wrench=np.array([r[3].foot_wrench for r in rows]),
         stance=np.array([r[3].stance for r in rows]),
+        limits_dropped=np.array([r[3].limits_dropped for r in rows], dtype=bool),
         object_position=np.array(positions).reshape(count, len(objects), 3),
         object_rotation=np.array(rotations).reshape(count, len(objects), 3, 3),
         qpos=np.array([r[4] for r in rows]),

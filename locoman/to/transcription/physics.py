@@ -228,7 +228,7 @@ def wrench_rows(section: Section) -> None:
     b, at, modes = section.builder, section.at, section.modes
     numbers, robot, P, par = section.numbers, section.robot, section.P, section.par
     contact = numbers.contact
-    sole_half = np.asarray(robot.frames.sole_half_extents, dtype=float)
+    sole_half = contact.sole_support_scale * np.asarray(robot.frames.sole_half_extents, dtype=float)
     for k, mode in enumerate(modes[:-1]):
         for i in range(2):
             if mode.feet[i]:
