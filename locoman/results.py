@@ -325,6 +325,27 @@ def _scenario_row(
     return [f"{PAPER_SCENARIOS[scenario]}: {description}", to, "; ".join(parts)]
 
 
+EXECUTION_CLAIM = "beyond both papers: carried out in MuJoCo's physics (stage `execute`)"
+
+
+def execution_cell(data: Path, scenario: str) -> str:
+    """Whether the G1 carried the scenario out in MuJoCo's forward dynamics
+    (``data/<scenario>/execute/metrics.json``), with what failed and for how long it stood."""
+    metrics = _read(data / scenario / "execute" / "metrics.json")
+    if metrics is None:
+        return "not run"
+    link = f"([execute](data/{scenario}/execute/))"
+    goals = [v for k, v in sorted(metrics.items()) if k.endswith("_goal_error_m")]
+    if metrics["success"]:
+        worst = f"; objects within {100 * max(goals):.1f} cm of their goals" if goals else ""
+        return f"yes{worst} {link}"
+    failed = metrics["failed_checks"]
+    when = f"{metrics['time_up_s']:.1f} of {metrics['duration_s']:.1f} s"
+    how = "fell at" if "stayed_up" in failed else "stopped at" if "completed" in failed else ""
+    stop = f"{how} {when}; " if how else ""
+    return f"no: {stop}failed {', '.join(failed)} {link}"
+
+
 def readme_tables(root: Path = Path(".")) -> str:
     """The README's two tables, from the files they cite: each scenario's solve and
     evaluation (``data/<scenario>/{solve,evaluate}/metrics.json``, the solve time from
@@ -348,6 +369,7 @@ def readme_tables(root: Path = Path(".")) -> str:
         [text, *(claim_cell(s, key, figure, root, True) for s in PAPER_SCENARIOS)]
         for key, figure, _, text in CLAIMS
     ]
+    claims.append([EXECUTION_CLAIM, *(execution_cell(data, s) for s in PAPER_SCENARIOS)])
     text = markdown(head, rows) + "\n\n" + markdown(claims_head, claims)
     mobile = mobile_claim(data)
     if mobile is not None:

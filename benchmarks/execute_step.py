@@ -1,0 +1,162 @@
+"""Benchmark of the execution controller's 1 kHz step: the inverse-dynamics QP and MuJoCo.
+
+Usage: python benchmarks/execute_step.py [--scenarios tiny ...] [--repeats 3]
+       [--out benchmarks/results/execute_step.json]
+Needs each scenario's scene and solve outputs (`dvc repro solve@tiny`).
+
+Per scenario, ``--repeats`` runs of the first :data:`STEPS` control steps (0.3 s of standing
+and 0.7 s of the first steps): the controller's step (Pinocchio's terms, the QP's
+assembly and DAQP's solve) and MuJoCo's step, medians and 99th percentiles over the steps,
+then the median over the runs. The QPs of the last run are solved again by DAQP and, where it
+is installed (it is not a dependency), by proxsuite's dense solver, cold and warm started.
+"""
+
+from __future__ import annotations
+
+import time
+
+import daqp
+import mujoco
+import numpy as np
+from common import run
+
+from locoman.artifacts import read_npz
+from locoman.config import load_params
+from locoman.execute import controller as controller_module
+from locoman.execute.reference import build_reference
+from locoman.execute.simulate import execute, execution_mjmodel
+from locoman.scene.io import load_scene_spec
+from locoman.stage import DATA_DIR
+from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
+
+STEPS = 1000
+
+
+def _recording_solve(recorded: list, solve):
+    """``solve`` (DAQP's), keeping a copy of every QP it is given in ``recorded``."""
+
+    def recording(*args):
+        recorded.append(tuple(np.array(a, copy=True) for a in args))
+        return solve(*args)
+
+    return recording
+
+
+def _mj_step_times(model: mujoco.MjModel, executed) -> np.ndarray:
+    """MuJoCo's step [s] from each recorded state with its torques."""
+    data = mujoco.MjData(model)
+    out = np.zeros(len(executed.time))
+    for i in range(len(executed.time)):
+        data.qpos[:] = executed.qpos[i]
+        mujoco.mj_forward(model, data)
+        data.ctrl[:] = executed.tau[i]
+        tic = time.perf_counter()
+        mujoco.mj_step(model, data)
+        out[i] = time.perf_counter() - tic
+    return out
+
+
+def _daqp_times(qps: list) -> np.ndarray:
+    out = []
+    for qp in qps:
+        tic = time.perf_counter()
+        daqp.solve(*qp)  # restored after the runs
+        out.append(time.perf_counter() - tic)
+    return np.array(out)
+
+
+def _proxsuite_times(qps: list) -> dict | None:
+    """Cold (a new dense QP each step) and warm (the previous step's solution as the start,
+    same size) solve times [s] of proxsuite's dense backend, or None without proxsuite."""
+    try:
+        import proxsuite
+    except ImportError:
+        return None
+    cold, warm, previous = [], [], None
+    for hessian, gradient, a, upper, lower, sense in qps:
+        eq = sense == controller_module._EQUALITY
+        n, n_eq, n_in = len(gradient), int(eq.sum()), int((~eq).sum())
+        args = (hessian, gradient, a[eq], upper[eq], a[~eq], lower[~eq], upper[~eq])
+        tic = time.perf_counter()
+        qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
+        qp.init(*args)
+        qp.solve()
+        cold.append(time.perf_counter() - tic)
+        if previous is not None and previous.model.dim == n and previous.model.n_eq == n_eq:
+            tic = time.perf_counter()
+            previous.update(*args)
+            previous.solve(previous.results.x, previous.results.y, previous.results.z)
+            warm.append(time.perf_counter() - tic)
+        previous = qp
+    return {
+        "version": proxsuite.__version__,
+        "cold_median_ms": float(np.median(cold) * 1e3),
+        "warm_median_ms": float(np.median(warm) * 1e3) if warm else None,
+    }
+
+
+def measure(scenario: str, repeats: int) -> dict:
+    cfg = load_params().execute
+    root = DATA_DIR / scenario
+    traj = read_npz(root / "solve" / TRAJECTORY_FILE, TRAJECTORY)
+    names = [str(name) for name in traj["object_names"]]
+    friction = float(traj["floor_friction"])
+    ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
+    model = execution_mjmodel(load_scene_spec(root / "scene"), cfg)
+    runs, qps = [], []
+    for r in range(repeats):
+        recorded: list = []
+        original = controller_module.daqp.solve
+        controller_module.daqp.solve = _recording_solve(recorded, original)
+        try:
+            tic = time.perf_counter()
+            executed = execute(model, ref, names, cfg, friction, STEPS)
+            wall = time.perf_counter() - tic
+        finally:
+            controller_module.daqp.solve = original
+        qp = executed.solve_time_s
+        mj = _mj_step_times(model, executed)
+        count = len(executed.time)
+        runs.append(
+            {
+                "steps": count,
+                "controller_median_ms": float(np.median(qp) * 1e3),
+                "controller_p99_ms": float(np.percentile(qp, 99) * 1e3),
+                "mujoco_step_median_ms": float(np.median(mj) * 1e3),
+                "step_median_ms": float(np.median(qp + mj) * 1e3),
+                "step_p99_ms": float(np.percentile(qp + mj, 99) * 1e3),
+                "loop_ms_per_step": wall / count * 1e3,
+            }
+        )
+        if r == repeats - 1:
+            qps = recorded
+    keys = runs[0].keys()
+    out = {key: float(np.median([run_[key] for run_ in runs])) for key in keys}
+    daqp_times = _daqp_times(qps)
+    out["qp_solvers"] = {
+        "qps": len(qps),
+        "unknowns_median": float(np.median([len(q[1]) for q in qps])),
+        "daqp": {"median_ms": float(np.median(daqp_times) * 1e3)},
+        "proxsuite_dense": _proxsuite_times(qps),
+    }
+    return out
+
+
+def summary(result: dict) -> str:
+    solvers = result["qp_solvers"]
+    prox = solvers["proxsuite_dense"]
+    prox_text = (
+        f", proxsuite {prox['cold_median_ms']:.2f} ms cold / {prox['warm_median_ms']:.2f} warm"
+        if prox
+        else ""
+    )
+    return (
+        f"step {result['step_median_ms']:.2f} ms median ({result['step_p99_ms']:.2f} p99): "
+        f"controller {result['controller_median_ms']:.2f}, MuJoCo "
+        f"{result['mujoco_step_median_ms']:.2f}; QP alone: DAQP "
+        f"{solvers['daqp']['median_ms']:.2f} ms{prox_text}"
+    )
+
+
+if __name__ == "__main__":
+    run(__doc__, "benchmarks/results/execute_step.json", measure, summary)
