@@ -49,9 +49,6 @@ class ExecuteCfg:
         posture: Every joint's angle (29 rows).
         force_weight: Weight of the contact wrenches' distance from the TO's [1/N^2].
         contact_kd: Damping of a stance foot's velocity in its contact constraint [1/s].
-        contact_kp: Stiffness [1/s^2] that turns a stance sole back flat (its roll and
-            pitch): on MuJoCo's soft floor a sole tilted by a fraction of a degree stands
-            on two corners.
         min_normal_force_n: Least normal force a stance foot keeps [N].
         support_scale: The sole the QP may put its centre of pressure on, as a fraction of
             the foot box's half length and half width: on MuJoCo's soft floor a CoP on the
@@ -76,7 +73,6 @@ class ExecuteCfg:
     posture: TaskCfg = field(default_factory=lambda: TaskCfg(weight=0.1, kp=100.0))
     force_weight: float = 1e-4
     contact_kd: float = 20.0
-    contact_kp: float = 100.0
     min_normal_force_n: float = 5.0
     support_scale: float = 1.0
     torque_margin: float = 1.0
@@ -102,8 +98,8 @@ class ExecuteCfg:
             errors.append(("support_scale", "must be in (0, 1]: a fraction of the sole"))
         if not 0.0 < self.torque_margin <= 1.0:
             errors.append(("torque_margin", "must be in (0, 1]: a fraction of each limit"))
-        if self.contact_kp < 0.0 or self.contact_kd < 0.0:
-            errors.append(("contact_kp", "contact_kp and contact_kd must be >= 0"))
+        if self.contact_kd < 0.0:
+            errors.append(("contact_kd", "must be >= 0"))
         if self.min_normal_force_n < 0.0 or self.force_weight <= 0.0:
             errors.append(("force_weight", "force_weight > 0, min_normal_force_n >= 0"))
         if self.filmstrip_frames < 1:

@@ -10,12 +10,11 @@ the plan's force is fed forward and MuJoCo's contact returns what the object rea
 
     min  sum_t weight_t |A_t a - b_t|^2 + force_weight |w - w_TO|_W^2 + eps |a|^2
     s.t. M_b a - J_c,b^T w = -h_b + J_h,b^T w_h           6 rows: the base is unactuated
-         J_c a + J_dot_c v = -kd J_c v + (0, kp e_flat)   6 rows per stance foot
+         J_c a + J_dot_c v = -kd J_c v                    6 rows per stance foot
          C_c w_c <= d_c                                   the sole's contact wrench cone
          |M_j a + h_j - J_c,j^T w - J_h,j^T w_h| <= tau_max   29 rows: torque limits
 
-e_flat turns a stance sole flat (:func:`flat_error`): MuJoCo's floor is soft, and a sole
-tilted by a fraction of a degree stands on two corners. W (:func:`wrench_metric`) weighs a
+W (:func:`wrench_metric`) weighs a
 moment as the force that makes it at the sole's edge. The tasks t are those of
 :mod:`locoman.execute.tasks`: the centre of mass, the pelvis's orientation, each swing foot's
 and each hand's pose, the joints' posture. DAQP solves the dense QP (about 47 unknowns;
@@ -64,15 +63,6 @@ class Command:
     stance: np.ndarray
     limits_dropped: bool
     solve_time_s: float
-
-
-def flat_error(rotation: np.ndarray) -> np.ndarray:
-    """(3,) rotation [rad], world axes, that lays a sole of orientation ``rotation`` flat
-    (its z up) without turning it about the vertical: log3(R_flat R^T)."""
-    yaw = np.arctan2(rotation[1, 0], rotation[0, 0])
-    c, s = np.cos(yaw), np.sin(yaw)
-    flat = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return pin.log3(flat @ rotation.T)
 
 
 def wrench_metric(moment_arm: np.ndarray, rotation: np.ndarray) -> np.ndarray:
@@ -207,11 +197,10 @@ class InverseDynamicsQp:
         lower = [bias[:6]]
         sense = [np.full(6, _EQUALITY)]
         for c, k in enumerate(active):
-            jac, _, rotation, vel, drift = feet[k]
+            jac, _, _, vel, drift = feet[k]
             rows_c = np.zeros((6, n))
             rows_c[:, :nv] = jac
             target = -drift - cfg.contact_kd * vel
-            target[3:] += cfg.contact_kp * flat_error(rotation)
             blocks.append(rows_c)
             upper.append(target)
             lower.append(target)
