@@ -8,7 +8,8 @@ Per scenario, ``--repeats`` runs of the first :data:`STEPS` control steps (0.3 s
 and 0.7 s of the first steps): the controller's step (Pinocchio's terms, the QP's
 assembly and DAQP's solve) and MuJoCo's step, medians and 99th percentiles over the steps,
 then the median over the runs. The QPs of the last run are solved again by DAQP and, where it
-is installed (it is not a dependency), by proxsuite's dense solver, cold and warm started.
+is installed (it is not a dependency), by proxsuite's dense solver, cold and warm started. And
+how far the reference's centroidal dynamics lie from the TO's wrenches it feeds forward.
 """
 
 from __future__ import annotations
@@ -18,11 +19,13 @@ import time
 import daqp
 import mujoco
 import numpy as np
+import pinocchio as pin
 from common import run
 
 from locoman.artifacts import read_npz
 from locoman.config import load_params
 from locoman.execute import controller as controller_module
+from locoman.execute.model import PALMS, SOLES, execution_model
 from locoman.execute.reference import build_reference
 from locoman.execute.simulate import execute, execution_mjmodel
 from locoman.scene.io import load_scene_spec
@@ -95,6 +98,42 @@ def _proxsuite_times(qps: list) -> dict | None:
     }
 
 
+def centroidal_residuals(ref) -> dict:
+    """How far the reference's centroidal dynamics are from the TO's wrenches it carries:
+    the momentum's rate (Pinocchio, at the samples' q, v, a) minus gravity and every contact
+    wrench about the centre of mass, median and 90th percentile of each component's size
+    over the motion [N, N m]."""
+    model = execution_model()
+    data = model.createData()
+    mass = pin.computeTotalMass(model)
+    weight = np.array([0.0, 0.0, -9.81 * mass])
+    moving = (ref.time > ref.time[0] + load_params().execute.settle_s) & (
+        ref.time < ref.time[-1] - load_params().execute.hold_s
+    )
+    rows = []
+    for i in np.flatnonzero(moving)[::2]:
+        pin.computeCentroidalMomentumTimeVariation(model, data, ref.q[i], ref.v[i], ref.a[i])
+        pin.framesForwardKinematics(model, data, ref.q[i])
+        com = pin.centerOfMass(model, data, ref.q[i])
+        force, moment = weight.copy(), np.zeros(3)
+        contacts = [(SOLES[k], ref.foot_wrench[i, k]) for k in range(2) if ref.foot_contact[i, k]]
+        contacts += [
+            (PALMS[k], ref.hand_wrench[i, k]) for k in range(2) if ref.hand_object[i, k] >= 0
+        ]
+        for frame, wrench in contacts:
+            point = data.oMf[model.getFrameId(frame)].translation
+            force += wrench[:3]
+            moment += np.cross(point - com, wrench[:3]) + wrench[3:]
+        rows.append(np.r_[data.dhg.linear - force, data.dhg.angular - moment])
+    size = np.abs(np.array(rows))
+    return {
+        "force_median_n": float(np.median(size[:, :3])),
+        "force_p90_n": float(np.percentile(size[:, :3], 90)),
+        "moment_median_nm": float(np.median(size[:, 3:])),
+        "moment_p90_nm": float(np.percentile(size[:, 3:], 90)),
+    }
+
+
 def measure(scenario: str, repeats: int) -> dict:
     cfg = load_params().execute
     root = DATA_DIR / scenario
@@ -133,6 +172,7 @@ def measure(scenario: str, repeats: int) -> dict:
     keys = runs[0].keys()
     out = {key: float(np.median([run_[key] for run_ in runs])) for key in keys}
     daqp_times = _daqp_times(qps)
+    out["reference_vs_to_wrenches"] = centroidal_residuals(ref)
     out["qp_solvers"] = {
         "qps": len(qps),
         "unknowns_median": float(np.median([len(q[1]) for q in qps])),
