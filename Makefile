@@ -35,12 +35,14 @@ $(LEARNED): $(STAMP)
 # Arm 1: `tiny` to its solve, which compiles the G1's terms for every solve after it, then
 # `tiny`'s figures (two grid jobs, about 8 min; the longest item, its naive Fig. 5 cell, about
 # 4), its evaluation and paper B. Arm 2: S1's and S2's perception and keyframes meanwhile,
-# then (`after:`) their solves and evaluations (S2's solve, about 5 min, the longest stage).
+# then (`after:`) their solves, evaluations and executions (S2's solve, about 5 min, the
+# longest stage).
 INPUTS := scene generate masks clouds contacts retarget
 ARM_TINY := validate $(INPUTS:%=%@tiny) solve@tiny figures@tiny evaluate@tiny execute@tiny \
 	scene@mm_pick_place demos kmp_fit hqp_replay
 ARM_REST := after:validate $(INPUTS:%=%@s1_basket) $(INPUTS:%=%@s2_trolley) after:solve@tiny \
-	solve@s1_basket evaluate@s1_basket solve@s2_trolley evaluate@s2_trolley
+	solve@s1_basket evaluate@s1_basket execute@s1_basket solve@s2_trolley evaluate@s2_trolley \
+	execute@s2_trolley
 
 run: setup
 	$(BIN)/python -m locoman.repro "$(ARM_TINY)" "$(ARM_REST)"

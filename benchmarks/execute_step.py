@@ -9,7 +9,8 @@ and 0.7 s of the first steps): the controller's step (Pinocchio's terms, the QP'
 assembly and DAQP's solve) and MuJoCo's step, medians and 99th percentiles over the steps,
 then the median over the runs. The QPs of the last run are solved again by DAQP and, where it
 is installed (it is not a dependency), by proxsuite's dense solver, cold and warm started. And
-how far the reference's centroidal dynamics lie from the TO's wrenches it feeds forward.
+how far the reference's centroidal dynamics lie from the TO's wrenches it feeds forward, and
+what the plan asks of the G1's joints and soles.
 """
 
 from __future__ import annotations
@@ -25,9 +26,11 @@ from common import run
 from locoman.artifacts import read_npz
 from locoman.config import load_params
 from locoman.execute import controller as controller_module
-from locoman.execute.model import PALMS, SOLES, execution_model
+from locoman.execute.model import PALMS, SOLES, execution_model, torque_limits
 from locoman.execute.reference import build_reference
 from locoman.execute.simulate import execute, execution_mjmodel
+from locoman.retarget.robot import contact_frames
+from locoman.scene.g1 import G1_JOINT_NAMES
 from locoman.scene.io import load_scene_spec
 from locoman.stage import DATA_DIR
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
@@ -134,6 +137,46 @@ def centroidal_residuals(ref) -> dict:
     }
 
 
+def plan_demands(ref, half_extents: np.ndarray) -> dict:
+    """What the plan asks of the G1: each joint's largest torque by inverse dynamics at the
+    reference with the TO's wrenches, as a fraction of its limit (the five largest), and the
+    median of each stance CoP's distance from the sole's centre as a fraction of its half
+    length (x) and half width (y), over the motion."""
+    model = execution_model()
+    data = model.createData()
+    limits = torque_limits(model)
+    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    cfg = load_params().execute
+    moving = (ref.time > ref.time[0] + cfg.settle_s) & (ref.time < ref.time[-1] - cfg.hold_s)
+    worst, cop = np.zeros(len(limits)), []
+    for i in np.flatnonzero(moving)[::2]:
+        tau = pin.rnea(model, data, ref.q[i], ref.v[i], ref.a[i]).copy()
+        pin.computeJointJacobians(model, data, ref.q[i])
+        pin.updateFramePlacements(model, data)
+        for frames, wrenches, on in (
+            (SOLES, ref.foot_wrench[i], ref.foot_contact[i]),
+            (PALMS, ref.hand_wrench[i], ref.hand_object[i] >= 0),
+        ):
+            for frame, wrench, touching in zip(frames, wrenches, on, strict=True):
+                if not touching:
+                    continue
+                fid = model.getFrameId(frame)
+                tau -= pin.getFrameJacobian(model, data, fid, world).T @ wrench
+                if frame in SOLES and wrench[2] > 50.0:
+                    R = data.oMf[fid].rotation
+                    f, m = R.T @ wrench[:3], R.T @ wrench[3:]
+                    cop.append(
+                        [abs(m[1] / f[2]) / half_extents[0], abs(m[0] / f[2]) / half_extents[1]]
+                    )
+        worst = np.maximum(worst, np.abs(tau[6:]) / limits)
+    order = np.argsort(-worst)[:5]
+    median = np.median(np.array(cop), axis=0)
+    return {
+        "torque_fraction_max": {G1_JOINT_NAMES[j]: float(worst[j]) for j in order},
+        "cop_fraction_median": {"x": float(median[0]), "y": float(median[1])},
+    }
+
+
 def measure(scenario: str, repeats: int) -> dict:
     cfg = load_params().execute
     root = DATA_DIR / scenario
@@ -173,6 +216,7 @@ def measure(scenario: str, repeats: int) -> dict:
     out = {key: float(np.median([run_[key] for run_ in runs])) for key in keys}
     daqp_times = _daqp_times(qps)
     out["reference_vs_to_wrenches"] = centroidal_residuals(ref)
+    out["plan_demands"] = plan_demands(ref, contact_frames().sole_half_extents)
     out["qp_solvers"] = {
         "qps": len(qps),
         "unknowns_median": float(np.median([len(q[1]) for q in qps])),

@@ -63,7 +63,7 @@ def test_bad_params_fail_at_start_up_naming_the_key(workdir, run_cli):
 
 def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir, run_cli):
     dvc = [sys.executable, "-m", "dvc"]
-    first = run_cli([*dvc, "repro", "evaluate@tiny"], workdir)
+    first = run_cli([*dvc, "repro", "evaluate@tiny", "execute@tiny"], workdir)
     assert first.returncode == 0, first.stderr
     root = workdir / "data" / "tiny"
     plan = json.loads((root / "scene" / "plan.json").read_text())
@@ -120,7 +120,14 @@ def test_tiny_humanoid_subgraph_runs_then_is_cached(workdir, run_cli):
     assert {"pelvis", "box", "table"} <= {e["id"] for e in update["entities"]}
     times, qpos = trajectory_qpos(load_scene_model(root / "scene"), root / "solve")
     assert len(times) == solve["nodes"] and np.all(np.isfinite(qpos))  # the viewer's frames
-    second = run_cli([*dvc, "repro", "evaluate@tiny"], workdir)
+    execute = json.loads((root / "execute" / "metrics.json").read_text())
+    assert execute["time_up_s"] > 0.5 and execute["peak_torque_fraction"] <= 1.0 + 1e-9
+    assert execute["success"] == (execute["failed_checks"] == [])
+    tracking = read_json_messages(root / "execute" / "executed.mcap", "/tracking")
+    assert tracking and "base_executed" in tracking[0][2]
+    assert (root / "execute" / "motion.mp4").stat().st_size > 0
+    assert (root / "execute" / "plots" / "filmstrip.png").is_file()
+    second = run_cli([*dvc, "repro", "evaluate@tiny", "execute@tiny"], workdir)
     assert second.returncode == 0, second.stderr
     # Only `validate` runs again: it runs first on every `dvc repro` (dvc.yaml).
     ran = [ln for ln in second.stdout.splitlines() if ln.startswith("Running stage")]

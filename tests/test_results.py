@@ -9,6 +9,7 @@ from locoman.results import (
     BEGIN,
     END,
     claim_text,
+    execution_cell,
     main,
     readme_section,
     readme_tables,
@@ -106,3 +107,26 @@ def test_update_readme_writes_between_the_markers_only(repo, tmp_path):
     assert text.startswith("# x\n\nbefore\n\n") and text.endswith(f"{END}\n\nafter\n")
     assert readme_section(text) == readme_tables(repo)
     assert not update_readme(readme, repo)
+
+
+def test_the_execution_row_says_whether_the_g1_carried_it_out(tmp_path):
+    assert execution_cell(tmp_path, "tiny") == "not run"
+    folder = tmp_path / "tiny" / "execute"
+    folder.mkdir(parents=True)
+    fell = {
+        "success": False,
+        "failed_checks": ["completed", "stayed_up", "object_goal"],
+        "time_up_s": 1.2,
+        "duration_s": 6.24,
+        "box_goal_error_m": 0.98,
+    }
+    (folder / "metrics.json").write_text(json.dumps(fell))
+    assert execution_cell(tmp_path, "tiny") == (
+        "no: fell at 1.2 of 6.2 s; failed completed, stayed_up, object_goal "
+        "([execute](data/tiny/execute/))"
+    )
+    carried = {"success": True, "failed_checks": [], "box_goal_error_m": 0.031}
+    (folder / "metrics.json").write_text(json.dumps(carried))
+    assert execution_cell(tmp_path, "tiny") == (
+        "yes; objects within 3.1 cm of their goals ([execute](data/tiny/execute/))"
+    )
