@@ -325,7 +325,7 @@ def _scenario_row(
     return [f"{PAPER_SCENARIOS[scenario]}: {description}", to, "; ".join(parts)]
 
 
-EXECUTION_CLAIM = "beyond both papers: carried out in MuJoCo's physics (stage `execute`)"
+EXECUTION_CLAIM = "ours: carried out in MuJoCo's physics (`execute`)"
 
 
 def execution_cell(data: Path, scenario: str) -> str:
@@ -341,9 +341,11 @@ def execution_cell(data: Path, scenario: str) -> str:
         return f"yes{worst} {link}"
     failed = metrics["failed_checks"]
     when = f"{metrics['time_up_s']:.1f} of {metrics['duration_s']:.1f} s"
-    how = "fell at" if "stayed_up" in failed else "stopped at" if "completed" in failed else ""
-    stop = f"{how} {when}; " if how else ""
-    return f"no: {stop}failed {', '.join(failed)} {link}"
+    if "stayed_up" in failed:
+        return f"no: fell at {when} {link}"
+    if "completed" in failed:
+        return f"no: stopped at {when} {link}"
+    return f"no: {', '.join(failed)} failed {link}"
 
 
 def readme_tables(root: Path = Path(".")) -> str:

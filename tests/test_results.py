@@ -122,8 +122,7 @@ def test_the_execution_row_says_whether_the_g1_carried_it_out(tmp_path):
     }
     (folder / "metrics.json").write_text(json.dumps(fell))
     assert execution_cell(tmp_path, "tiny") == (
-        "no: fell at 1.2 of 6.2 s; failed completed, stayed_up, object_goal "
-        "([execute](data/tiny/execute/))"
+        "no: fell at 1.2 of 6.2 s ([execute](data/tiny/execute/))"
     )
     carried = {"success": True, "failed_checks": [], "box_goal_error_m": 0.031}
     (folder / "metrics.json").write_text(json.dumps(carried))
