@@ -7,7 +7,8 @@ Layout under ``data/<scenario>/execute/``::
                           (locoman.execute.metrics); timing.json: the QP's time per step
     executed.mcap         link and object poses every 10 ms (foxglove.FrameTransforms, /tf)
                           and /tracking: planned and executed base and hand positions
-    motion.mp4            executed (left) beside planned (right), real time, 30 frames/s
+    motion.mp4            executed (left) beside planned (right), real time, 30 frames/s,
+                          to AFTER_STOP_S past a stop (the whole plan: evaluate's MP4)
     plots/filmstrip.png   executed (top row) above planned (bottom row) at the same times
 """
 
@@ -45,6 +46,9 @@ log = logging.getLogger(__name__)
 MCAP_FILE = "executed.mcap"
 VIDEO_FILE = "motion.mp4"
 MCAP_PERIOD_S = 0.01  # [s]
+# The video runs this long past the step an execution stopped at [s]: a frozen fall beside
+# the rest of the plan would be most of a failed run's rendering (S1: 10 s of video).
+AFTER_STOP_S = 1.0
 
 
 def _planned_qpos(model: mujoco.MjModel, ref: Reference, names: list[str], i: int) -> np.ndarray:
@@ -107,9 +111,15 @@ def filmstrip(model, executed, ref, names, frames: int, bearing: float) -> np.nd
 
 
 def motion_frames(model, executed, ref, names, bearing: float) -> Iterator[np.ndarray]:
-    """Executed beside planned, in real time at :data:`VIDEO_FPS`."""
+    """Executed beside planned, in real time at :data:`VIDEO_FPS`, to the end of the
+    reference or :data:`AFTER_STOP_S` past where the execution stopped."""
     dt = ref.time[1] - ref.time[0]
-    samples = np.arange(0, len(ref), max(1, round(1.0 / (VIDEO_FPS * dt))))
+    end = (
+        len(ref)
+        if executed.completed
+        else min(len(ref), len(executed.time) + round(AFTER_STOP_S / dt))
+    )
+    samples = np.arange(0, end, max(1, round(1.0 / (VIDEO_FPS * dt))))
     half = (VIDEO_SIZE[0] // 2, VIDEO_SIZE[1])
     for a, b in _pairs(model, executed, ref, names, samples, half, bearing):
         yield np.hstack([a, b])
