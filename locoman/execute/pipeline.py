@@ -101,7 +101,14 @@ def _pairs(
             )
 
 
-def filmstrip(model, executed, ref, names, frames: int, bearing: float) -> np.ndarray:
+def filmstrip(
+    model: mujoco.MjModel,
+    executed: Execution,
+    ref: Reference,
+    names: list[str],
+    frames: int,
+    bearing: float,
+) -> np.ndarray:
     """Executed (top row) above planned (bottom row) at ``frames`` evenly spaced times."""
     samples = np.linspace(0, len(ref) - 1, frames).round().astype(int)
     pairs = list(_pairs(model, executed, ref, names, samples, (TILE, TILE), bearing))
@@ -110,7 +117,9 @@ def filmstrip(model, executed, ref, names, frames: int, bearing: float) -> np.nd
     return np.vstack([top, bottom])
 
 
-def motion_frames(model, executed, ref, names, bearing: float) -> Iterator[np.ndarray]:
+def motion_frames(
+    model: mujoco.MjModel, executed: Execution, ref: Reference, names: list[str], bearing: float
+) -> Iterator[np.ndarray]:
     """Executed beside planned, in real time at :data:`VIDEO_FPS`, to the end of the
     reference or :data:`AFTER_STOP_S` past where the execution stopped."""
     dt = ref.time[1] - ref.time[0]
@@ -126,10 +135,15 @@ def motion_frames(model, executed, ref, names, bearing: float) -> Iterator[np.nd
 
 
 def write_executed_mcap(
-    path: Path, model: mujoco.MjModel, executed: Execution, ref: Reference, names: list[str], state
+    path: Path,
+    model: mujoco.MjModel,
+    executed: Execution,
+    ref: Reference,
+    names: list[str],
+    state: np.ndarray,
 ) -> None:
-    """Link and object poses every :data:`MCAP_PERIOD_S`, and the planned and executed base
-    and palm positions on ``/tracking``."""
+    """Link and object poses every :data:`MCAP_PERIOD_S`, the planned and executed base and
+    palm positions on ``/tracking``, and the scene drawn at ``state`` (its initial qpos)."""
     dt = ref.time[1] - ref.time[0]
     rows = np.arange(0, len(executed.time), max(1, round(MCAP_PERIOD_S / dt)))
     frames: dict[str, tuple[list, list]] = {}
