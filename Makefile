@@ -76,6 +76,8 @@ bench: setup
 	$(BIN)/python benchmarks/retarget_speed.py
 	$(BIN)/dvc repro retarget@tiny
 	$(BIN)/python benchmarks/to_solvers.py
+	$(BIN)/dvc repro solve
+	$(BIN)/python benchmarks/execute_step.py
 
 # Recompose params.yaml from conf/ (the same composition `dvc exp run -S` performs).
 params: setup
