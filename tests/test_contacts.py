@@ -494,24 +494,37 @@ def test_a_hand_that_lands_off_the_object_makes_the_registration_doubtful():
 @given(
     stretch=st.tuples(*[st.floats(0.8, 1.25)] * 3),
     yaw=st.floats(-np.pi, np.pi),
-    offset=st.floats(0.1, 0.8),
+    standoff=st.floats(0.1, 0.8),
+    side=st.floats(-0.3, 0.3),
 )
-def test_a_foot_keeps_its_distance_from_the_object_and_a_hand_is_stretched_with_it(
-    stretch, yaw, offset
+def test_a_foot_keeps_its_offset_from_the_approach_face_and_a_hand_is_stretched_with_it(
+    stretch, yaw, standoff, side
 ):
     """Under an affine map A = [R D | t] (a turn R, a per-axis stretch D), a hand on the
-    object goes where A puts it; a foot ``offset`` metres beside the object's nearest cloud
-    point stays that far from where A puts that point, turned by R."""
-    rng = np.random.default_rng(0)
-    cloud = rng.uniform(-0.3, 0.3, size=(500, 3))
-    cloud[:, 0] = 0.3  # the face the person stands in front of
-    rot = Rotation.from_euler("z", yaw).as_matrix()
+    object and a foot on its top go where A puts them; a foot on the floor ``standoff``
+    metres in front of the approach face and ``side`` metres off its centre line stays there
+    whatever the stretch (the person does not move with the variant's size)."""
+    table = (Primitive("box", (0.3, 0.4, 0.02), (0.0, 0.0, 0.7), "top"),)
+    T_world_object = np.eye(4)
+    T_world_object[:3, :3] = Rotation.from_euler("z", 0.4).as_matrix()
+    T_world_object[:3, 3] = [1.0, -2.0, 0.0]
+    rot = Rotation.from_euler("z", yaw).as_matrix() @ T_world_object[:3, :3]
     affine = np.eye(4)
     affine[:3, :3] = rot @ np.diag(stretch)
-    affine[:3, 3] = [1.0, -2.0, 0.5]
-    hand = cloud[7]
-    foot = cloud[11] + [offset, 0.0, 0.0]
-    placed = place_contacts(affine, np.stack([hand, foot]), cloud, ["left_hand", "left_foot"])
-    np.testing.assert_allclose(placed[0], affine[:3, :3] @ hand + affine[:3, 3], atol=1e-12)
-    anchor = affine[:3, :3] @ cloud[11] + affine[:3, 3]
-    np.testing.assert_allclose(placed[1] - anchor, rot @ [offset, 0.0, 0.0], atol=1e-9)
+    affine[:3, 3] = [0.5, 0.2, -0.1]
+    undo = np.linalg.inv(affine)
+    world = lambda p: camera.transform(np.array([p]), T_world_object)[0]  # noqa: E731
+    face_centre = world([-0.3, 0.0, 0.0])
+    floor_foot = world([-0.3 - standoff, side, 0.0])
+    top_foot, hand = world([0.1, 0.11, 0.72]), world([0.05, 0.4, 0.7])
+    gen_face = apply(undo, face_centre[None])[0]
+    lifted = np.stack(
+        [
+            apply(undo, hand[None])[0],
+            gen_face + rot.T @ (floor_foot - face_centre),  # the person's offset in R_g
+            apply(undo, top_foot[None])[0],
+        ]
+    )
+    effectors = ["left_hand", "left_foot", "right_foot"]
+    placed = place_contacts(affine, lifted, effectors, table, T_world_object)
+    np.testing.assert_allclose(placed, [hand, floor_foot, top_foot], atol=1e-9)

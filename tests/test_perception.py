@@ -183,6 +183,27 @@ def test_rendered_ground_truth_is_consistent(rendered):
     assert t["object_mask"].sum() > 1000 and not np.any(t["object_mask"] & t["human_mask"])
 
 
+def test_a_foot_contacts_truth_is_where_the_person_stepped(params):
+    """The person steps aside (``view.lateral_jitter_m``) and their feet with them: the true
+    contact is where the sole stands, not the unstepped target."""
+    from locoman.perception.demonstrator import STANCE_HALF_WIDTH
+    from locoman.perception.render_backend import render_subtask
+    from locoman.scene.builder import build_scene
+
+    scene = build_scene("tiny", params.scenarios["tiny"])
+    sub = scene.plan["subtasks"][0]  # walk to the table: both feet
+    obj = scene.objects[sub["object"]]
+    t = render_subtask(
+        obj, sub, obj["pos_m"][2], params.perception.generate, np.random.default_rng(4)
+    ).truth
+    names = list(t["keypoint_names"])
+    soles = t["keypoints_world_m"][[names.index(e) for e in sub["contacts"]]]
+    contacts = t["contact_points_variant_m"] + t["T_world_object"][:3, 3]
+    np.testing.assert_allclose(soles, contacts, atol=0.005)
+    stepped = contacts[:, 1] - np.array([STANCE_HALF_WIDTH, -STANCE_HALF_WIDTH])
+    assert abs(stepped[0]) > 0.02 and stepped[0] == pytest.approx(stepped[1])
+
+
 def test_depth_error_model_scales_adds_noise_and_drops_edges():
     depth = np.full((60, 80), 2.0, np.float32)
     depth[20:40, 30:50] = 1.0

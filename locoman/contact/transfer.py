@@ -34,7 +34,7 @@ from locoman.contact.surface import project_to_support, project_to_surface, samp
 from locoman.errors import SceneError
 from locoman.perception import camera
 from locoman.perception.demonstrator import LOCAL_FORWARD
-from locoman.scene.objects import Primitive
+from locoman.scene.objects import Primitive, bounding_box
 
 FLOOR_Z = 0.0  # [m] world height of the floor
 
@@ -223,25 +223,46 @@ def are_feet(effectors: list[str]) -> np.ndarray:
 
 
 def place_contacts(
-    affine: np.ndarray, lifted: np.ndarray, cloud: np.ndarray, effectors: list[str]
+    affine: np.ndarray,
+    lifted: np.ndarray,
+    effectors: list[str],
+    primitives: tuple[Primitive, ...],
+    T_world_object: np.ndarray,
 ) -> np.ndarray:
     """Contacts (C, 3) lifted in R_g's metric camera frame, placed in the scene world [m].
 
-    A hand is on the object: it goes where the registration's ``affine`` map (4, 4: the
-    similarity and the object's per-axis stretch) takes it. A foot stands beside the object
-    at the person's distance from it, which the object's size does not change: the point c
-    of R_g's object ``cloud`` (N, 3) nearest the foot p goes through the affine map A, the
-    offset through its rotation R alone (the nearest rotation to A's linear part):
-    p_world = A c + R (p - c). Stretching the offset too would move a foot that stands 0.4 m
-    from a table the variant shows 20 % smaller by 8 cm.
+    A hand is on the object: it goes where the registration's ``affine`` map A (4, 4: the
+    similarity and the object's per-axis stretch) takes it, and so does a foot that A puts on
+    one of the object's tops. A foot on the floor stands in front of the object's approach
+    face (its -x side) at the person's offset from that face's centre a, on the object's
+    bottom: with c = A^-1 a the point of R_g that A puts there, and R the nearest rotation to
+    A's linear part,
+
+        p_world = a + R (p - c).
+
+    The object's size does not move the person: a table the variant shows 20 % smaller
+    moves neither a person standing 0.3 m in front of it nor their feet 0.1 m either side of
+    its centre line, which the nearest point of the object (a leg) would.
     """
     placed = apply(affine, lifted)
-    feet = are_feet(effectors)
-    if feet.any():
-        p = lifted[feet]
-        c = cloud[np.linalg.norm(cloud[None] - p[:, None], axis=2).argmin(axis=1)]
-        placed[feet] = apply(affine, c) + (p - c) @ nearest_rotation(affine[:3, :3]).T
+    floor = are_feet(effectors) & ~on_object_top(placed, primitives, T_world_object)
+    if floor.any():
+        lo, _ = bounding_box(primitives)
+        a = camera.transform(np.array([[lo[0], 0.0, 0.0]]), T_world_object)
+        c = apply(np.linalg.inv(affine), a)
+        placed[floor] = a + (lifted[floor] - c) @ nearest_rotation(affine[:3, :3]).T
     return placed
+
+
+def on_object_top(
+    points_world: np.ndarray, primitives: tuple[Primitive, ...], T_world_object: np.ndarray
+) -> np.ndarray:
+    """Whether the upward surface closest to each point (N, 3) [m] is one of the object's
+    tops rather than the floor (N,)."""
+    local = camera.transform(points_world, np.linalg.inv(T_world_object))
+    floor_z = FLOOR_Z - float(T_world_object[2, 3])  # object frames are upright (yaw only)
+    q, _ = project_to_support(local, primitives, floor_z)
+    return np.abs(q[:, 2] - floor_z) > 1e-9
 
 
 def contact_gaps(raw: np.ndarray, projected: np.ndarray, effectors: list[str]) -> np.ndarray:
@@ -315,7 +336,9 @@ def transfer_subtask(
         rng,
         inputs.where,
     )
-    placed = place_contacts(reg.affine, lifted, source, inputs.effectors)
+    placed = place_contacts(
+        reg.affine, lifted, inputs.effectors, inputs.primitives, inputs.T_world_object
+    )
     projected, normals, surfaces = project_contacts(placed, inputs.effectors, inputs)
     gaps = dict(
         zip(inputs.effectors, contact_gaps(placed, projected, inputs.effectors), strict=True)

@@ -214,6 +214,19 @@ def contact_targets(
     return targets
 
 
+def stepped_aside(
+    target: ContactTarget, lateral: float, patches: tuple[ContactPatch, ...]
+) -> ContactTarget:
+    """``target`` moved ``lateral`` metres along the object's +y, as a foot moves when the
+    person steps aside; a patch contact keeps its patch, with the coordinates of the moved
+    point."""
+    point = target.point + np.array([0.0, lateral, 0.0])
+    if target.patch == "floor":
+        return dataclasses.replace(target, point=point)
+    patch = {p.name: p for p in patches}[target.patch]
+    return dataclasses.replace(target, point=point, patch_uv=_uv_of(patch, point))
+
+
 def _side_uv(patch: ContactPatch, base_height: float) -> tuple[float, float]:
     u, _ = patch_axes(patch)
     low = base_height + patch.centre[2] < LOW_FACE_BELOW_M

@@ -23,7 +23,12 @@ from locoman.errors import SceneError
 from locoman.perception import camera, demonstrator
 from locoman.scene import human
 from locoman.scene.builder import GEOM_TYPES
-from locoman.scene.objects import ContactPatch, ObjectGeometry, object_geometry
+from locoman.scene.objects import (
+    ContactPatch,
+    ObjectGeometry,
+    object_geometry,
+    primitive_half_extents,
+)
 from locoman.scene.plan_state import top_face
 
 MIN_OBJECT_PIXELS = 200  # [px] fewer visible object pixels than this is "out of view"
@@ -137,6 +142,13 @@ def render_subtask(
     lateral = rng.uniform(-view.lateral_jitter_m, view.lateral_jitter_m)
     standoff = rng.uniform(*view.standoff_m)
     stance, world_targets = _place_person(lifted, yaw, lateral, standoff)
+    # The truth is where the feet stand: they step aside with the person.
+    targets = [
+        demonstrator.stepped_aside(t, lateral, geometry.patches)
+        if t.effector.endswith("_foot")
+        else t
+        for t in targets
+    ]
 
     spec = _generation_spec(variant, z0, cfg, rng)
     if stand is not None:
@@ -363,15 +375,6 @@ def _mesh_points(model: mujoco.MjModel, qpos: np.ndarray, stride: int = 7) -> np
         verts = model.mesh_vert[adr : adr + n : stride]
         chunks.append(verts @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g])
     return np.vstack(chunks)
-
-
-def primitive_half_extents(shape: str, size: tuple[float, ...]) -> np.ndarray:
-    """Half extents (3,) [m] of a primitive's bounding box in its own frame."""
-    if shape == "box":
-        return np.asarray(size, float)
-    if shape == "cylinder":
-        return np.array([size[0], size[0], size[1]])
-    return np.full(3, size[0])
 
 
 def _object_corners(geometry: ObjectGeometry, z0: float) -> np.ndarray:

@@ -19,11 +19,11 @@ from locoman.errors import SceneError
 from locoman.perception import camera
 from locoman.perception.render_backend import (
     MIN_OBJECT_PIXELS,
-    primitive_half_extents,
     render_rgbd,
 )
 from locoman.scene import g1
 from locoman.scene.io import load_scene_spec
+from locoman.scene.objects import primitive_half_extents
 
 
 @dataclasses.dataclass(frozen=True)

@@ -38,6 +38,23 @@ class Primitive:
     name: str
 
 
+def primitive_half_extents(shape: str, size: tuple[float, ...]) -> np.ndarray:
+    """Half extents (3,) [m] of a primitive's bounding box in its own frame."""
+    if shape == "box":
+        return np.asarray(size, float)
+    if shape == "cylinder":
+        return np.array([size[0], size[0], size[1]])
+    return np.full(3, size[0])
+
+
+def bounding_box(primitives: Sequence[Primitive]) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper corners (3,), (3,) [m] of the box around ``primitives``, object
+    frame."""
+    lo = [np.asarray(p.pos) - primitive_half_extents(p.shape, p.size) for p in primitives]
+    hi = [np.asarray(p.pos) + primitive_half_extents(p.shape, p.size) for p in primitives]
+    return np.min(lo, axis=0), np.max(hi, axis=0)
+
+
 @dataclasses.dataclass(frozen=True)
 class ContactPatch:
     """A rectangular contact surface in the object frame.
