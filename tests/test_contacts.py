@@ -34,6 +34,7 @@ from locoman.contact.registration import (
 )
 from locoman.contact.surface import (
     closest_on_primitive,
+    held_parts,
     project_to_support,
     project_to_surface,
     sample_surface,
@@ -281,6 +282,28 @@ def test_surface_projection_lands_on_or_outside_every_primitive(kind):
         np.stack([signed_distance(points, p) for p in primitives]).min(axis=0)[outside],
         atol=1e-9,
     )
+
+
+def test_a_hand_goes_onto_the_parts_that_carry_a_patch():
+    """A trolley is held by its handle bar (or its platform), never by the posts that carry
+    the bar, though a hand the registration put 8 cm below the bar is nearer a post."""
+    geometry = object_geometry("trolley", SIZES["trolley"])
+    held = held_parts(geometry.primitives, geometry.patches)
+    assert sorted(p.name for p in held) == ["handle", "platform"]
+    table = object_geometry("table", SIZES["table"])
+    assert [p.name for p in held_parts(table.primitives, table.patches)] == ["top"]
+    box = object_geometry("box", SIZES["box"])
+    assert held_parts(box.primitives, ()) == box.primitives  # no patches: every part
+    bar = next(p for p in geometry.patches if p.name == "handle")
+    post = next(p for p in geometry.primitives if p.name == "post_left")
+    hand = np.array([[bar.centre[0] - 0.01, post.pos[1] - 0.04, bar.centre[2] - 0.08]])
+    on_post, _ = project_to_surface(hand, geometry.primitives)
+    on_bar, _ = project_to_surface(hand, geometry.primitives, held)
+    assert abs(signed_distance(on_post, post)[0]) < 1e-9
+    handle = next(p for p in held if p.name == "handle")
+    assert abs(signed_distance(on_bar, handle)[0]) < 1e-9
+    assert on_bar[0, 2] == pytest.approx(bar.centre[2] - handle.size[2])
+    assert min(signed_distance(on_bar, p)[0] for p in geometry.primitives) > -1e-9
 
 
 @settings(max_examples=60, deadline=None)

@@ -22,12 +22,14 @@ from locoman.contact.io import CONTACTS, PLOTS_DIR, subtask_file
 from locoman.contact.kabsch import decompose_similarity
 from locoman.contact.plot import contact_plot
 from locoman.contact.scoring import score_subtask, summarise, true_contacts
+from locoman.contact.surface import held_parts
 from locoman.contact.transfer import SubtaskInputs, Transfer, primitives_of, transfer_subtask
 from locoman.errors import ArtifactError, SceneError
 from locoman.perception.generate import subtask_rng
 from locoman.perception.io import CLOUDS, MASKS, POSE, PROMPTS, PROMPTS_FILE, SIM_VIEW, read_png
 from locoman.perception.io import SUBTASKS_DIR as PERCEPTION_SUBTASKS
 from locoman.perception.masks import load_truth, median_or_none
+from locoman.perception.render_backend import object_patches
 from locoman.progress import progress
 from locoman.scene.io import load_objects
 
@@ -51,6 +53,7 @@ def load_inputs(
     masks = read_npz(masks_dir / PERCEPTION_SUBTASKS / f"subtask_{i}.npz", MASKS)
     pose = read_npz(masks_dir / PERCEPTION_SUBTASKS / f"pose_{i}.npz", POSE)
     clouds = read_npz(clouds_dir / PERCEPTION_SUBTASKS / f"subtask_{i}.npz", CLOUDS)
+    primitives = primitives_of(objects[entry["object"]])
     names = [str(n) for n in clouds["keypoint_names"]]
     if [str(n) for n in pose["keypoint_names"]] != names:
         raise ArtifactError(f"{where}: the pose and the clouds name different keypoints")
@@ -74,7 +77,8 @@ def load_inputs(
         pose_keypoints=pose["keypoints_cam_m"],
         T_cam_pelvis=pose["T_cam_pelvis"],
         T_world_object=sim["T_world_object"],
-        primitives=primitives_of(objects[entry["object"]]),
+        primitives=primitives,
+        held=held_parts(primitives, list(object_patches(objects[entry["object"]]).values())),
     )
 
 

@@ -14,9 +14,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from locoman.scene.objects import BOX, CYLINDER, SPHERE, Primitive
+from locoman.scene.objects import BOX, CYLINDER, SPHERE, ContactPatch, Primitive
 
 BURIED_TOL = 1e-9  # [m] a surface point deeper than this inside another primitive is buried
+ON_SURFACE_TOL = 1e-6  # [m] a patch centre this close to a primitive's surface lies on it
 UP = np.array([0.0, 0.0, 1.0])
 
 
@@ -94,16 +95,32 @@ def _cylinder_surface(p: np.ndarray, r: float, hh: float) -> tuple[np.ndarray, n
 
 
 def project_to_surface(
-    points: np.ndarray, primitives: Sequence[Primitive]
+    points: np.ndarray, primitives: Sequence[Primitive], onto: Sequence[Primitive] | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Closest points (N, 3) [m] on the surface of a union of primitives, and outward normals.
 
     Points inside the object move out to its surface; points outside move onto it. The
-    result lies on or outside every primitive.
+    result lies on or outside every primitive. ``onto`` (default: all of ``primitives``)
+    restricts the surface to some of them, e.g. the parts a hand holds (:func:`held_parts`).
     """
     points = np.asarray(points, dtype=float).reshape(-1, 3)
-    candidates = [closest_on_primitive(points, prim) for prim in primitives]
+    candidates = [closest_on_primitive(points, prim) for prim in (onto or primitives)]
     return _pick_unburied(points, candidates, primitives)
+
+
+def held_parts(
+    primitives: Sequence[Primitive], patches: Sequence[ContactPatch]
+) -> tuple[Primitive, ...]:
+    """The primitives a hand may hold: those whose surface carries a contact patch's centre
+    (a trolley's handle bar and platform, not its posts, struts or wheels; a table's top, not
+    its legs); all of them when none does."""
+    centres = np.array([p.centre for p in patches], dtype=float).reshape(-1, 3)
+    held = tuple(
+        prim
+        for prim in primitives
+        if np.any(np.abs(signed_distance(centres, prim)) < ON_SURFACE_TOL)
+    )
+    return held or tuple(primitives)
 
 
 def project_to_support(

@@ -7,9 +7,10 @@ Paper A, Sec. III-A.2, third step. Per subtask:
    (:mod:`.registration`), which gives the transform T_world_gen;
 3. the hands and feet lifted to 3D (:mod:`.lift`), mapped into the world (:func:`place_contacts`:
    a hand by the registration's affine map, a foot at the person's distance from the object)
-   and projected onto the closest surface of the simulated object (feet: the closest surface
-   they can stand on, the object's tops or the floor), so that no contact lies inside the
-   object (:mod:`.surface`);
+   and projected onto the closest surface of the simulated object (hands: of the parts that
+   carry a contact patch, a trolley's handle bar rather than its posts; feet: the closest
+   surface they can stand on, the object's tops or the floor), so that no contact lies
+   inside the object (:mod:`.surface`);
 4. the human's placement: the pelvis of the 3D pose mapped by the same transform, relative to
    the object, for retargeting.
 
@@ -60,6 +61,7 @@ class SubtaskInputs:
         T_cam_pelvis: Pelvis pose of the 3D pose estimate.
         T_world_object: The object's pose in the scene.
         primitives: The object's primitive shapes, object frame.
+        held: Those a hand may hold (:func:`~locoman.contact.surface.held_parts`).
     """
 
     where: str
@@ -82,6 +84,7 @@ class SubtaskInputs:
     T_cam_pelvis: np.ndarray
     T_world_object: np.ndarray
     primitives: tuple[Primitive, ...]
+    held: tuple[Primitive, ...]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -197,9 +200,9 @@ def lift_effectors(
 def project_contacts(
     points_world: np.ndarray, effectors: list[str], inputs: SubtaskInputs
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """L projected onto the object: hands onto its closest surface point, feet onto the
-    closest upward surface (its tops or the floor). Returns points, normals (world) and the
-    surface each landed on."""
+    """L projected onto the object: hands onto the closest surface point of the parts they
+    hold, feet onto the closest upward surface (its tops or the floor). Returns points,
+    normals (world) and the surface each landed on."""
     T = inputs.T_world_object
     local = camera.transform(points_world, np.linalg.inv(T))
     out = np.empty_like(local)
@@ -211,7 +214,7 @@ def project_contacts(
             q, n = project_to_support(local[k : k + 1], inputs.primitives, floor_z)
             surfaces.append("floor" if abs(q[0, 2] - floor_z) < 1e-9 else "object")
         else:
-            q, n = project_to_surface(local[k : k + 1], inputs.primitives)
+            q, n = project_to_surface(local[k : k + 1], inputs.primitives, inputs.held)
             surfaces.append("object")
         out[k], normals[k] = q[0], n[0]
     return camera.transform(out, T), normals @ T[:3, :3].T, surfaces
