@@ -326,3 +326,41 @@ def test_an_image_it_cannot_take_says_what_to_do(tiny_scene, tmp_path, image, me
         path.rename(folder / "subtask_0.png")
     with pytest.raises(InputError, match=message):
         generate_scenario("tiny", tiny_scene, tmp_path / "out", _folder_cfg(folder), 0)
+
+
+def test_a_doubtful_registration_stops_the_stage_or_falls_back_as_on_doubt_says(
+    folder_run, tiny_scene, params, tmp_path
+):
+    """``contacts.on_doubt``: ``fail`` stops at the first doubtful subtask and names it;
+    ``fallback`` puts the naive contacts in its place and says so. A registration is made
+    doubtful here by asking for a perfect overlap."""
+    from locoman.contact.pipeline import contacts_scenario
+    from locoman.errors import SceneError
+
+    strict = dataclasses.replace(
+        params.contacts,
+        confidence=dataclasses.replace(params.contacts.confidence, min_overlap=1.0),
+    )
+
+    def run(on_doubt: str) -> dict:
+        return contacts_scenario(
+            "tiny",
+            tiny_scene,
+            folder_run / "generate",
+            folder_run / "masks",
+            folder_run / "clouds",
+            tmp_path / on_doubt,
+            dataclasses.replace(strict, on_doubt=on_doubt),
+            0,
+        )
+
+    with pytest.raises(SceneError, match=r"subtask 0 .*doubtful \(overlap .*on_doubt is fail"):
+        run("fail")
+    metrics = run("fallback")
+    rows = metrics["per_subtask"]
+    assert [r["used"] for r in rows] == ["naive"] * 3 and all(r["doubtful"] for r in rows)
+    for r in rows:
+        contacts = read_npz(subtask_file(tmp_path / "fallback", r["index"]), CONTACTS)
+        np.testing.assert_array_equal(
+            contacts["points_object_m"], contacts["naive_points_object_m"]
+        )
