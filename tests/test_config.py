@@ -256,6 +256,17 @@ def test_a_slack_bound_that_is_not_positive_is_refused(raw, value):
     validate(bad)
 
 
+def test_a_sole_cone_other_than_paper_or_exact_is_refused(raw):
+    bad = yaml.safe_load(yaml.safe_dump(raw))
+    bad["solve"]["contact"]["sole_cone"] = "exactly"
+    with pytest.raises(
+        ConfigError, match=r"solve\.contact\.sole_cone: must be one of paper, exact"
+    ):
+        validate(bad)
+    bad["solve"]["contact"]["sole_cone"] = "exact"
+    validate(bad)
+
+
 @pytest.mark.parametrize(
     ("key", "value", "message"),
     [

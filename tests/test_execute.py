@@ -107,6 +107,37 @@ def test_every_wrench_four_corners_can_push_is_inside_the_cone(normal, tangent, 
     assert np.all(rows @ w <= wrench_bounds(0.0) + 1e-6 * (1.0 + fz.sum()))
 
 
+@given(
+    w=st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
+    rpy=st.lists(st.floats(-0.3, 0.3), min_size=3, max_size=3),
+)
+@settings(max_examples=100, deadline=None)
+def test_the_tos_exact_sole_cone_is_the_executions(w, rpy):
+    """``solve.contact.sole_cone = exact``: the TO's rows (>= 0) are the execution's rows
+    (<= 0) but the loading one, so a plan's sole wrench is one the QP can reproduce; the
+    paper's (3c) is looser (it accepts a wrench the corners cannot push)."""
+    from locoman.to.terms.contacts import foot_cone_kind
+
+    R = rpy_to_matrix(np.array(rpy))
+    wrench = np.array(w) * np.array([80.0, 80.0, 0.0, 10.0, 20.0, 15.0])
+    wrench[2] = 200.0 + 200.0 * w[2]
+    x = np.r_[wrench, R.ravel(order="F")]
+    to_rows = np.array(foot_cone_kind(True).term.function(x, np.r_[MU, HALF])[0]).ravel()
+    qp_rows = world_wrench_rows(local_wrench_rows(MU, HALF), R)[:-1] @ wrench
+    np.testing.assert_allclose(np.sort(to_rows), np.sort(-qp_rows), atol=1e-9)
+
+
+def test_the_papers_yaw_bound_accepts_a_wrench_the_sole_cannot_carry():
+    from locoman.to.terms.contacts import foot_cone_kind
+
+    fz = 300.0  # on the heel's edge, twisting as far as (3c) allows
+    wrench = np.array([0.0, 0.0, fz, 0.0, -HALF[0] * fz, MU * HALF.max() * fz])
+    x = np.r_[wrench, np.eye(3).ravel()]
+    paper = np.array(foot_cone_kind(False).term.function(x, np.r_[MU, HALF])[0]).ravel()
+    exact = np.array(foot_cone_kind(True).term.function(x, np.r_[MU, HALF])[0]).ravel()
+    assert paper.min() >= -1e-9 and exact.min() < -1.0
+
+
 def test_every_wrench_inside_the_cone_is_pushed_by_four_corners():
     """The converse: a wrench the rows accept is a sum of corner forces in their pyramids
     (a linear program finds them), so the rows are the sole's exact contact wrench cone."""

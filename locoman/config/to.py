@@ -388,6 +388,9 @@ class ScheduleCfg:
         return errors
 
 
+SOLE_CONES = ("paper", "exact")  # ``solve.contact.sole_cone``: (3c) or the corners' rows
+
+
 @dataclass
 class ContactCfg:
     """Contact parameters of the TO.
@@ -404,6 +407,9 @@ class ContactCfg:
         sole_support_scale: The part of each sole (3b) lets the CoP use, as a fraction of
             its half length and half width: 1 is the whole foot box (the paper); below 1
             leaves a controller room to correct on a soft floor (``docs/execution.md``).
+        sole_cone: The yaw moment a sole may carry: ``paper`` (3c), |tau_z| <= mu max(X, Y)
+            f_z, or ``exact``, the rows of its four corners' friction pyramids (Caron et al.
+            2015, the execution's cone), which (3c) exceeds near the sole's edges.
     """
 
     floor_friction: float = 0.8
@@ -412,9 +418,12 @@ class ContactCfg:
     palm_half_extents_m: list[float] = field(default_factory=lambda: [0.04, 0.03])
     slack_max_m: float | None = 0.004
     sole_support_scale: float = 1.0
+    sole_cone: str = "paper"
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
+        if self.sole_cone not in SOLE_CONES:
+            errors.append(("sole_cone", f"must be one of {', '.join(SOLE_CONES)}"))
         if not 0.0 < self.sole_support_scale <= 1.0:
             errors.append(("sole_support_scale", "must be in (0, 1]: a fraction of the sole"))
         if self.floor_friction <= 0.0 or self.stiffness <= 0.0:

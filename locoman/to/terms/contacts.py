@@ -106,6 +106,31 @@ def friction_cone_cop(
     )
 
 
+def sole_yaw_cone(force: ca.SX, moment: ca.SX, R: ca.SX, mu: float, size_x: float, size_y: float):
+    """Inequalities (>= 0) of the yaw moment a rectangular sole's four corners carry, each
+    inside its friction pyramid (Caron, Pham and Nakamura, ICRA 2015), in the contact frame
+    R: for both signs s of tau_z and every sign pair (a, b),
+
+        mu (X + Y) f_z - s tau_z - a (Y f_x + s mu tau_x) - b (X f_y + s mu tau_y) >= 0.
+
+    They replace (3c) (``solve.contact.sole_cone = exact``): near an edge of the sole (3c)
+    allows a yaw moment the corners cannot carry (``docs/execution.md``). The same rows as
+    the execution's cone, :func:`locoman.execute.contacts.local_wrench_rows`."""
+    f = R.T @ force
+    tau = R.T @ moment
+    return ca.vertcat(
+        *[
+            mu * (size_x + size_y) * f[2]
+            - s * tau[2]
+            - a * (size_y * f[0] + s * mu * tau[0])
+            - b * (size_x * f[1] + s * mu * tau[1])
+            for s in (1.0, -1.0)
+            for a in (1.0, -1.0)
+            for b in (1.0, -1.0)
+        ]
+    )
+
+
 def interactive_contact(
     r_i: ca.SX, r_j: ca.SX, slack: ca.SX, R_i: ca.SX, R_j: ca.SX, omega_i: ca.SX, omega_j: ca.SX
 ) -> ca.SX:
@@ -193,15 +218,20 @@ def hand_contact_kind(onset: str) -> TermKind:
 
 
 @functools.cache
-def foot_cone_kind() -> TermKind:
-    """(3) of a foot's wrench (force, moment at the sole centre) in its sole frame R."""
+def foot_cone_kind(exact: bool = False) -> TermKind:
+    """(3) of a foot's wrench (force, moment at the sole centre) in its sole frame R; with
+    ``exact``, (3c)'s two rows replaced by the corners' yaw rows (:func:`sole_yaw_cone`)."""
 
     def body(x, p) -> Rows:
         w, R = x["wrench"], ca.reshape(x["R"], 3, 3)
-        half = p["half"]
-        return Rows(inequalities=[friction_cone_cop(w[0:3], w[3:6], R, p["mu"], half[0], half[1])])
+        mu, half = p["mu"], p["half"]
+        rows = friction_cone_cop(w[0:3], w[3:6], R, mu, half[0], half[1])
+        if exact:
+            rows = ca.vertcat(rows[:8], sole_yaw_cone(w[0:3], w[3:6], R, mu, half[0], half[1]))
+        return Rows(inequalities=[rows])
 
-    return term_kind("foot_cone", {"wrench": 6, "R": 9}, {"mu": 1, "half": 2}, body)
+    name = "foot_cone_exact" if exact else "foot_cone"
+    return term_kind(name, {"wrench": 6, "R": 9}, {"mu": 1, "half": 2}, body)
 
 
 @functools.cache

@@ -106,7 +106,8 @@ def generic_kinds() -> list[TermKind]:
     kinds += [wrench_kind(at, about) for at, about in (("point", "point"), ("object", "point"))]
     kinds += [wrench_kind("point", "object")]
     kinds += [foot_patch_kind(o) for o in ONSETS] + [hand_contact_kind(o) for o in ONSETS]
-    kinds += [sole_depth_kind(), foot_cone_kind(), object_face_cone_kind()]
+    kinds += [sole_depth_kind(), foot_cone_kind(False), foot_cone_kind(True)]
+    kinds.append(object_face_cone_kind())
     for support in SUPPORT_KINDS:
         kinds += [support_contact_kind(support, o) for o in ONSETS]
         kinds.append(support_wrench_kind(support))

@@ -234,7 +234,7 @@ def wrench_rows(section: Section) -> None:
             if mode.feet[i]:
                 x = {"wrench": at.limb(k, "foot_wrench", i), "R": at.foot(k, i, "R")}
                 p = {"mu": contact.floor_friction, "half": sole_half}
-                b.own(foot_cone_kind()).add(x, p)
+                b.own(foot_cone_kind(contact.sole_cone == "exact")).add(x, p)
             j = mode.hands[i]
             if j is not None and not prehensile(contact, numbers.objects[j]):
                 x = {"wrench": at.limb(k, "hand_wrench", i), "rpy": at.obj(k, j, "q")[ORIENTATION]}
