@@ -6,7 +6,8 @@ Paper A, Sec. III-A.2, third step. Per subtask:
 2. sampled SVD + ICP registration of R_g's object cloud onto the simulated object
    (:mod:`.registration`), which gives the transform T_world_gen;
 3. the hands and feet lifted to 3D (:mod:`.lift`), mapped into the world (:func:`place_contacts`:
-   a hand by the registration's affine map, a foot at the person's distance from the object)
+   a hand by the registration's affine map, a foot on the floor at the person's offset from
+   the object's approach face)
    and projected onto the closest surface of the simulated object (hands: of the parts that
    carry a contact patch, a trolley's handle bar rather than its posts; feet: the closest
    surface they can stand on, the object's tops or the floor), so that no contact lies
@@ -38,6 +39,7 @@ from locoman.perception.demonstrator import LOCAL_FORWARD
 from locoman.scene.objects import Primitive, bounding_box
 
 FLOOR_Z = 0.0  # [m] world height of the floor
+ON_FLOOR_TOL = 1e-9  # [m] a projected sole this close to the floor's height stands on it
 
 
 @dataclasses.dataclass(frozen=True)
@@ -208,11 +210,11 @@ def project_contacts(
     out = np.empty_like(local)
     normals = np.empty_like(local)
     surfaces = []
-    floor_z = FLOOR_Z - float(T[2, 3])  # object frames are upright (yaw only)
+    floor_z = floor_height(T)
     for k, name in enumerate(effectors):
         if name.endswith("_foot"):
             q, n = project_to_support(local[k : k + 1], inputs.primitives, floor_z)
-            surfaces.append("floor" if abs(q[0, 2] - floor_z) < 1e-9 else "object")
+            surfaces.append("floor" if abs(q[0, 2] - floor_z) < ON_FLOOR_TOL else "object")
         else:
             q, n = project_to_surface(local[k : k + 1], inputs.primitives, inputs.held)
             surfaces.append("object")
@@ -263,9 +265,14 @@ def on_object_top(
     """Whether the upward surface closest to each point (N, 3) [m] is one of the object's
     tops rather than the floor (N,)."""
     local = camera.transform(points_world, np.linalg.inv(T_world_object))
-    floor_z = FLOOR_Z - float(T_world_object[2, 3])  # object frames are upright (yaw only)
+    floor_z = floor_height(T_world_object)
     q, _ = project_to_support(local, primitives, floor_z)
-    return np.abs(q[:, 2] - floor_z) > 1e-9
+    return np.abs(q[:, 2] - floor_z) > ON_FLOOR_TOL
+
+
+def floor_height(T_world_object: np.ndarray) -> float:
+    """The floor's height [m] in the object's frame (object frames are upright: yaw only)."""
+    return FLOOR_Z - float(T_world_object[2, 3])
 
 
 def contact_gaps(raw: np.ndarray, projected: np.ndarray, effectors: list[str]) -> np.ndarray:
