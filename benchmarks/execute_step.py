@@ -4,13 +4,13 @@ Usage: python benchmarks/execute_step.py [--scenarios tiny ...] [--repeats 3]
        [--out benchmarks/results/execute_step.json]
 Needs each scenario's scene and solve outputs (`dvc repro solve@tiny`).
 
-Per scenario, ``--repeats`` runs of the first :data:`STEPS` control steps (0.3 s of standing
-and 0.7 s of the first steps): the controller's step (Pinocchio's terms, the QP's
+Per scenario, ``--repeats`` runs of the first :data:`STEPS` control steps (the settling, 1 s
+at the defaults, and the first steps): the controller's step (Pinocchio's terms, the QP's
 assembly and DAQP's solve) and MuJoCo's step, medians and 99th percentiles over the steps,
 then the median over the runs. The QPs of the last run are solved again by DAQP and, where it
 is installed (it is not a dependency), by proxsuite's dense solver, cold and warm started. And
-how far the reference's centroidal dynamics lie from the TO's wrenches it feeds forward, and
-what the plan asks of the G1's joints and soles.
+how far the plan's centroidal dynamics, sampled as the reference samples it, lie from the
+TO's wrenches, and what the plan asks of the G1's joints and soles.
 """
 
 from __future__ import annotations
@@ -27,15 +27,15 @@ from locoman.artifacts import read_npz
 from locoman.config import load_params
 from locoman.execute import controller as controller_module
 from locoman.execute.model import PALMS, SOLES, execution_model, torque_limits
+from locoman.execute.pipeline import execution_setup
 from locoman.execute.reference import build_reference
-from locoman.execute.simulate import execute, execution_mjmodel
+from locoman.execute.simulate import execute
 from locoman.retarget.robot import contact_frames
 from locoman.scene.g1 import G1_JOINT_NAMES
-from locoman.scene.io import load_scene_spec
 from locoman.stage import DATA_DIR
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
 
-STEPS = 1000
+STEPS = 2000
 
 
 def _recording_solve(recorded: list, solve):
@@ -183,8 +183,7 @@ def measure(scenario: str, repeats: int) -> dict:
     traj = read_npz(root / "solve" / TRAJECTORY_FILE, TRAJECTORY)
     names = [str(name) for name in traj["object_names"]]
     friction = float(traj["floor_friction"])
-    ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
-    model = execution_mjmodel(load_scene_spec(root / "scene"), cfg)
+    ref, model = execution_setup(root / "scene", traj, cfg)
     runs, qps = [], []
     for r in range(repeats):
         recorded: list = []
@@ -215,8 +214,10 @@ def measure(scenario: str, repeats: int) -> dict:
     keys = runs[0].keys()
     out = {key: float(np.median([run_[key] for run_ in runs])) for key in keys}
     daqp_times = _daqp_times(qps)
-    out["reference_vs_to_wrenches"] = centroidal_residuals(ref)
-    out["plan_demands"] = plan_demands(ref, contact_frames().sole_half_extents)
+    # What the TO's plan itself asks (its centre of mass and wrenches, not the LIPM's).
+    plan = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
+    out["reference_vs_to_wrenches"] = centroidal_residuals(plan)
+    out["plan_demands"] = plan_demands(plan, contact_frames().sole_half_extents)
     out["qp_solvers"] = {
         "qps": len(qps),
         "unknowns_median": float(np.median([len(q[1]) for q in qps])),

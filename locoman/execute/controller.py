@@ -16,7 +16,7 @@ the plan's force is fed forward and MuJoCo's contact returns what the object rea
 
 W (:func:`wrench_metric`) weighs a
 moment as the force that makes it at the sole's edge. The tasks t are those of
-:mod:`locoman.execute.tasks`: the centre of mass, the pelvis's orientation, each swing foot's
+:mod:`locoman.execute.tasks`: the centre of mass, the pelvis's and the torso's orientations, each swing foot's
 and each hand's pose, the joints' posture. DAQP solves the dense QP (about 47 unknowns;
 ``benchmarks/execute_step.py`` measures it).
 """
@@ -33,7 +33,7 @@ import pinocchio as pin
 from locoman.config.execute import ExecuteCfg, TaskCfg
 from locoman.errors import SolverError
 from locoman.execute.contacts import local_wrench_rows, world_wrench_rows, wrench_bounds
-from locoman.execute.model import BASE, PALMS, SOLES, torque_limits
+from locoman.execute.model import BASE, PALMS, SOLES, TORSO, torque_limits
 from locoman.execute.reference import Reference
 from locoman.execute.tasks import pd_target, pose_error, posture_rows
 
@@ -98,6 +98,7 @@ class InverseDynamicsQp:
         self._soles = [model.getFrameId(name) for name in SOLES]
         self._palms = [model.getFrameId(name) for name in PALMS]
         self._base = model.getFrameId(BASE)
+        self._torso = model.getFrameId(TORSO)
         self._cone = local_wrench_rows(
             friction, cfg.support_scale * np.asarray(sole_half_extents, dtype=float)
         )
@@ -159,6 +160,8 @@ class InverseDynamicsQp:
         rows.append((cfg.com.weight, d.Jcom, com_b))
         base = self._frame(self._base, q)
         self._task(rows, cfg.base_orientation, base, ref.frames[BASE], i, slice(3, 6))
+        torso = self._frame(self._torso, q)
+        self._task(rows, cfg.torso_orientation, torso, ref.frames[TORSO], i, slice(3, 6))
         for k, name in enumerate(SOLES):
             if not stance[k]:
                 self._task(rows, cfg.swing_foot, feet[k], ref.frames[name], i, slice(0, 6))

@@ -6,7 +6,8 @@ Frames (``pin.FrameType.OP_FRAME``), the same points the TO's contacts use
       ankle-roll link (z up when the foot is flat);
     * ``left_palm``, ``right_palm``: the centre of each hand's capsule, axes of the palm's
       contact frame (z its outward normal);
-    * ``pelvis``: the base link (already in the model).
+    * ``pelvis``: the base link, ``torso_link`` the torso above the waist (both already in
+      the model).
 Conventions: ``q`` (36,) and ``v`` (35,) are Pinocchio's (base quaternion xyzw; base twist in
 the base frame). Jacobians are ``LOCAL_WORLD_ALIGNED``: a frame's linear velocity [m/s] and
 angular velocity [rad/s], both in world axes, and a wrench (force [N], moment [N m]) at the
@@ -26,6 +27,7 @@ from locoman.scene import g1
 SOLES = ("left_sole", "right_sole")
 PALMS = ("left_palm", "right_palm")
 BASE = g1.BASE_LINK
+TORSO = "torso_link"
 
 
 @functools.cache

@@ -27,10 +27,11 @@ from locoman.artifacts.mcap_io import write_mcap
 from locoman.artifacts.pictures import fit_tile
 from locoman.artifacts.video import write_mp4
 from locoman.config.execute import ExecuteCfg
+from locoman.execute.balance import execution_reference
 from locoman.execute.metrics import execution_metrics, frame_positions
 from locoman.execute.model import PALMS
-from locoman.execute.reference import Reference, build_reference
-from locoman.execute.simulate import Execution, execute, execution_mjmodel
+from locoman.execute.reference import Reference
+from locoman.execute.simulate import Execution, execute, execution_mjmodel, palm_torsion
 from locoman.scene import g1
 from locoman.scene.io import load_scene_spec, load_state
 from locoman.scene.rotations import quat_xyzw_to_rpy, wxyz_to_xyzw
@@ -174,13 +175,24 @@ def write_executed_mcap(
     write_mcap(path, executed.time[rows], poses, signals, entities=entities)
 
 
+def execution_setup(
+    scene_dir: Path, traj: dict[str, np.ndarray], cfg: ExecuteCfg
+) -> tuple[Reference, mujoco.MjModel]:
+    """The controller's reference (:func:`locoman.execute.balance.execution_reference`)
+    and MuJoCo's model of the scene, the palms' torsional friction the TO's palm patch's
+    on its most frictional object."""
+    ref = execution_reference(traj, cfg)
+    friction = float(np.max(traj["object_friction"], initial=0.0))
+    torsion = palm_torsion(friction, traj["palm_half_extents"])
+    return ref, execution_mjmodel(load_scene_spec(scene_dir), cfg, torsion)
+
+
 def execute_scenario(scene_dir: Path, solve_dir: Path, out_dir: Path, cfg: ExecuteCfg) -> dict:
     """Execute, measure, and write the metrics, the MCAP and (``cfg.video``) the pictures;
     returns the metrics."""
     traj = read_npz(solve_dir / TRAJECTORY_FILE, TRAJECTORY)
     names = [str(name) for name in traj["object_names"]]
-    ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
-    model = execution_mjmodel(load_scene_spec(scene_dir), cfg)
+    ref, model = execution_setup(scene_dir, traj, cfg)
     executed = execute(model, ref, names, cfg, float(traj["floor_friction"]))
     metrics = execution_metrics(model, executed, ref, traj, cfg)
     write_executed_mcap(

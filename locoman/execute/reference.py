@@ -9,7 +9,8 @@ The TO gives nodes 20-80 ms apart (``trajectory.npz``). Between them:
       the nodes has the centre of mass accelerate at 13 m/s^2 where the wrenches give 3);
     * a contact and its wrench are node k's over the step from node k to k + 1 (the TO's
       implicit Euler step integrates node k's rates; on S1 the G1 then stands 2.4 s, against
-      1.3 s with the contacts of both nodes and the wrenches linear between them).
+      1.3 s with the contacts of both nodes and the wrenches linear between them);
+    * a hand's wrench only while it carries its object alone (:func:`carried`).
 Before the motion the robot holds the first node for ``settle_s``, standing on both soles,
 after it the last for ``hold_s`` with the last node's contacts.
 """
@@ -21,12 +22,12 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 
-from locoman.execute.model import BASE, PALMS, SOLES, execution_model
+from locoman.execute.model import BASE, PALMS, SOLES, TORSO, execution_model
 from locoman.scene.rotations import rpy_to_matrix
 from locoman.sim.evaluate import euler_rates_to_world
 
-#: Frames with a pose reference: the soles, the palms, the pelvis.
-TRACKED_FRAMES = (*SOLES, *PALMS, BASE)
+#: Frames with a pose reference: the soles, the palms, the pelvis, the torso.
+TRACKED_FRAMES = (*SOLES, *PALMS, BASE, TORSO)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,6 +142,20 @@ def interpolate_nodes(
     return position, rate, acceleration
 
 
+def carried(traj: dict[str, np.ndarray], node: np.ndarray) -> np.ndarray:
+    """(T, 2) whether each hand holds, at nodes ``node`` (T,), an object nothing else
+    supports (``support_kind`` none). While a support carries the object too, the TO's
+    split of its weight between hands and support is one of many (on tiny it presses the
+    box onto the table with 85 N at the grasp); only a carried object's wrench is fed
+    forward."""
+    hands = traj["hand_object"][node]
+    free = traj["support_kind"][node] == "none"  # (T, M)
+    if free.shape[1] == 0:
+        return np.zeros(hands.shape, dtype=bool)
+    rows = np.arange(len(node))[:, None]
+    return (hands >= 0) & free[rows, np.maximum(hands, 0)]
+
+
 def build_reference(
     traj: dict[str, np.ndarray], timestep_s: float, settle_s: float, hold_s: float
 ) -> Reference:
@@ -164,7 +179,7 @@ def build_reference(
     feet[settling] = True
     hands = traj["hand_object"][node]
     foot_wrench = np.where(feet[..., None], traj["foot_wrench"][node], 0.0)
-    hand_wrench = np.where((hands >= 0)[..., None], traj["hand_wrench"][node], 0.0)
+    hand_wrench = np.where(carried(traj, node)[..., None], traj["hand_wrench"][node], 0.0)
     at_end = t >= duration
     feet[at_end] = traj["feet_contact"][-1]
     hands = np.where(at_end[:, None], traj["hand_object"][-1], hands)

@@ -3,6 +3,7 @@
 The scene stage's MJCF (``data/<scenario>/scene/scene.xml``) with, for execution:
     * a torque motor per joint, its control range the URDF's effort limit;
     * the controller's period as MuJoCo's step (1 kHz by default);
+    * torsional friction on the palms, the TO's palm patch's (:func:`palm_torsion`);
 the objects stay free bodies: a hand holds one only through MuJoCo's contact and friction.
 """
 
@@ -26,10 +27,26 @@ from locoman.scene.rotations import quat_wxyz_to_matrix, rpy_to_matrix
 log = logging.getLogger(__name__)
 
 
-def execution_mjmodel(spec: mujoco.MjSpec, cfg: ExecuteCfg) -> mujoco.MjModel:
+def palm_torsion(friction: float, half_extents: np.ndarray) -> float:
+    """MuJoCo's torsional friction [m] of a palm pressed flat on an object: the largest
+    moment about the normal per newton of normal force, mu times the mean distance of the
+    TO's palm patch (half extents (2,) [m]) from its centre under a uniform pressure."""
+    a, b = (float(h) for h in half_extents)
+    # Mean of sqrt(x^2 + y^2) over the rectangle [-a, a] x [-b, b] (closed form).
+    d = np.hypot(a, b)
+    mean = (2 * a * b * d + a**3 * np.log((b + d) / a) + b**3 * np.log((a + d) / b)) / (6 * a * b)
+    return friction * mean
+
+
+def execution_mjmodel(
+    spec: mujoco.MjSpec, cfg: ExecuteCfg, palm_torsion_m: float = 0.0
+) -> mujoco.MjModel:
     """The scene ``spec`` (the scene stage's, :func:`locoman.scene.io.load_scene_spec`;
     changed in place) with a torque motor on every G1 joint, stepping every
-    ``cfg.timestep_s``."""
+    ``cfg.timestep_s``; with ``palm_torsion_m`` > 0 [m] the palms' collision geoms resist a
+    twist about their normal (MuJoCo's condim 4, :func:`palm_torsion`) as the TO's palm
+    patch does: with point contacts a box held between two palms pivots about the line
+    through them and drops."""
     spec.option.timestep = cfg.timestep_s
     limits = torque_limits(execution_model())
     for name, limit in zip(g1.G1_JOINT_NAMES, limits, strict=True):
@@ -40,6 +57,12 @@ def execution_mjmodel(spec: mujoco.MjSpec, cfg: ExecuteCfg) -> mujoco.MjModel:
         motor.gainprm[0] = 1.0
         motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         motor.ctrlrange = [-limit, limit]
+    if palm_torsion_m > 0.0:
+        for link in g1.HAND_LINKS:
+            for geom in spec.body(link).geoms:
+                if geom.contype or geom.conaffinity:
+                    geom.condim = 4
+                    geom.friction = [geom.friction[0], palm_torsion_m, geom.friction[2]]
     return spec.compile()
 
 

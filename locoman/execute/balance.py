@@ -1,0 +1,206 @@
+"""A centre-of-mass reference the soles can carry: the linear inverted pendulum (LIPM) over the
+plan's footsteps.
+
+The TO's centre of mass puts the centre of pressure (CoP) of its soles at 95-99 % of their
+half extents (docs/execution.md): feasible on paper, with no room left for feedback. This
+module keeps the plan's footsteps, timing, swing feet and hands, and replans the horizontal
+centre of mass so that the CoP runs through the middle of the support (Kajita et al. 2003,
+"Biped walking pattern generation by using preview control of zero-moment point"):
+
+    z_ref(t)   the stance sole's centre in single support; in double support a straight line
+               from the sole the weight leaves to the sole it goes to               (ZMP path)
+    m g c - m h c_ddot = m g z_hat                                                  (LIPM)
+
+with h the centre of mass's height above the stance soles [m]. The hands' planned wrenches
+(f_h, tau_h) at the palms p_h (the held object's weight, a push) shift the CoP the robot's own
+centre of mass must make: moment balance about the CoP z, neglecting the rate of the
+centroidal angular momentum, gives (x; y by symmetry)
+
+    m g c_x - m h c_ddot_x = z_x (m g - sum f_hz) + sum (p_hx f_hz - p_hz f_hx - tau_hy)
+
+whose right side divided by m g is z_hat, the robot's own ZMP reference (``effective_zmp``).
+c follows from a least-squares fit over the whole motion, jerk piecewise constant every
+``period_s`` (Kajita's preview control without a finite preview):
+
+    min  sum_k |z_k - z_hat_k|^2 + r |jerk_k|^2 + terminal rest,  c(0) = c_0 at rest
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from locoman.config.execute import BalanceCfg, ExecuteCfg
+from locoman.execute.model import PALMS, SOLES, execution_model
+from locoman.execute.reference import Reference, build_reference
+
+GRAVITY = 9.81  # [m/s^2]
+
+
+@dataclasses.dataclass(frozen=True)
+class ComPath:
+    """A horizontal centre-of-mass trajectory at the controller's samples.
+
+    Attributes:
+        position: (T, 2) [m]; ``velocity`` [m/s] and ``acceleration`` [m/s^2] the same shape.
+        zmp: (T, 2) the ZMP path it was fitted to (z_ref, before the hands' shift) [m].
+        height: The pendulum's height h [m].
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    zmp: np.ndarray
+    height: float
+
+
+def zmp_path(foot_contact: np.ndarray, soles: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """(T, 2) z_ref [m]: the stance sole's centre in single support, in double support a
+    straight line from the sole the weight leaves to the sole it goes to; before the first
+    single support it starts at ``start`` (2,) (the centre of mass standing), after the last
+    it ends between the soles.
+
+    Args:
+        foot_contact: (T, 2) whether each foot (left, right) is on its support.
+        soles: (T, 2, 2) each sole centre's planned horizontal position [m].
+        start: (2,) where the path starts [m].
+    """
+    T = len(foot_contact)
+    single = foot_contact.sum(axis=1) == 1
+    anchor = np.full((T, 2), np.nan)
+    anchor[single] = soles[single, np.argmax(foot_contact[single], axis=1)]
+    path = anchor.copy()
+    i = 0
+    while i < T:
+        if single[i]:
+            i += 1
+            continue
+        j = i
+        while j < T and not single[j]:
+            j += 1
+        begin = anchor[i - 1] if i > 0 else np.asarray(start, dtype=float)
+        end = anchor[j] if j < T else soles[T - 1].mean(axis=0)
+        # The weight moves over the whole double support, ending on the next stance sole
+        # as it lifts the other (or between the soles at the end).
+        s = (np.arange(i, j) - i + 1) / (j - i + (0 if j == T else 1))
+        path[i:j] = begin + s[:, None] * (end - begin)
+        i = j
+    return path
+
+
+def effective_zmp(
+    zmp: np.ndarray,
+    hand_wrench: np.ndarray,
+    hand_position: np.ndarray,
+    ground: np.ndarray,
+    mass: float,
+) -> np.ndarray:
+    """(T, 2) z_hat [m]: the ZMP the robot's own centre of mass must make for its soles' CoP
+    to be ``zmp`` (T, 2) while its hands take the wrenches ``hand_wrench`` (T, H, 6) [N, N m]
+    (the objects' on the hands, world axes, at ``hand_position`` (T, H, 3) [m]); ``ground``
+    (T,) the soles' height [m], ``mass`` the robot's [kg] (the module's docstring)."""
+    f, tau = hand_wrench[..., :3], hand_wrench[..., 3:]
+    p = hand_position.copy()
+    p[..., 2] -= ground[:, None]
+    weight = mass * GRAVITY
+    load = weight - f[..., 2].sum(axis=1)
+    x = zmp[:, 0] * load + (p[..., 0] * f[..., 2] - p[..., 2] * f[..., 0] - tau[..., 1]).sum(1)
+    y = zmp[:, 1] * load + (p[..., 1] * f[..., 2] - p[..., 2] * f[..., 1] + tau[..., 0]).sum(1)
+    return np.stack([x, y], axis=1) / weight
+
+
+def _triple_integrator(step: float) -> tuple[np.ndarray, np.ndarray]:
+    """(A (3, 3), B (3,)) of (c, c_dot, c_ddot) under a jerk held over ``step`` [s]."""
+    a = np.array([[1.0, step, step**2 / 2], [0.0, 1.0, step], [0.0, 0.0, 1.0]])
+    b = np.array([step**3 / 6, step**2 / 2, step])
+    return a, b
+
+
+def fit_com(
+    target: np.ndarray,
+    start: np.ndarray,
+    height: float,
+    timestep_s: float,
+    period_s: float,
+    jerk_weight: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(c, c_dot, c_ddot), each (T, 2), of the LIPM whose ZMP c - h c_ddot / g best follows
+    ``target`` (T, 2) [m] sampled every ``timestep_s`` [s]: from rest at ``start`` (2,) [m],
+    jerk constant over each ``period_s`` [s] (rounded to a multiple of the timestep),
+    weighted ``jerk_weight`` [s^6] against the ZMP's error at the pieces' starts, and at
+    rest at the end."""
+    T = len(target)
+    stride = max(1, round(period_s / timestep_s))
+    K = -(-T // stride)  # jerk pieces; the fit looks at the samples 0, stride, ...
+    a_k, b_k = _triple_integrator(stride * timestep_s)
+    # x_k = A^k x_0 + sum_{l<k} A^(k-1-l) B u_l, k = 0..K.
+    powers = [np.eye(3)]
+    for _ in range(K):
+        powers.append(a_k @ powers[-1])
+    gain = np.zeros((K + 1, 3, K))
+    for k in range(1, K + 1):
+        gain[k] = a_k @ gain[k - 1]
+        gain[k, :, k - 1] += b_k
+    zmp_row = np.array([1.0, 0.0, -height / GRAVITY])
+    zmp_gain = np.einsum("j,kjl->kl", zmp_row, gain[:K])
+    end = gain[K, 1:]  # velocity and acceleration at the end
+    rest_weight = 1e3
+    lhs = zmp_gain.T @ zmp_gain + jerk_weight * np.eye(K) + rest_weight * end.T @ end
+    a1, b1 = _triple_integrator(timestep_s)
+    out = np.zeros((T, 3, 2))
+    for axis in range(2):
+        x0 = np.array([start[axis], 0.0, 0.0])
+        free = np.array([zmp_row @ powers[k] @ x0 for k in range(K)])
+        rhs = (
+            zmp_gain.T @ (target[::stride, axis] - free)
+            - rest_weight * end.T @ (powers[K] @ x0)[1:]
+        )
+        jerk = np.linalg.solve(lhs, rhs)
+        x = x0
+        for i in range(T):
+            out[i, :, axis] = x
+            x = a1 @ x + b1 * jerk[i // stride]
+    return out[:, 0], out[:, 1], out[:, 2]
+
+
+def support_height(foot_contact: np.ndarray, sole_height: np.ndarray) -> np.ndarray:
+    """(T,) the height of the ground under the robot [m]: its lowest stance sole's (both
+    soles' lowest where none stands), from ``foot_contact`` (T, 2) and ``sole_height``
+    (T, 2) [m]."""
+    ground = np.where(foot_contact, sole_height, np.inf).min(axis=1)
+    return np.where(np.isfinite(ground), ground, sole_height.min(axis=1))
+
+
+def balanced_reference(ref: Reference, cfg: BalanceCfg, timestep_s: float) -> Reference:
+    """``ref`` with its horizontal centre of mass replanned by the LIPM (the module's
+    docstring), h the mean height of the plan's above the ground, and no foot wrench of the
+    TO's (the QP's least-norm wrenches, their CoP mid-sole, go with it); everything else,
+    the vertical centre of mass included, is the plan's."""
+    soles = np.stack([ref.frames[name].position for name in SOLES], axis=1)
+    palms = np.stack([ref.frames[name].position for name in PALMS], axis=1)
+    ground = support_height(ref.foot_contact, soles[..., 2])
+    mass = float(sum(inertia.mass for inertia in execution_model().inertias))
+    zmp = zmp_path(ref.foot_contact, soles[..., :2], ref.com[0, :2])
+    target = effective_zmp(zmp, ref.hand_wrench, palms, ground, mass)
+    height = float(np.mean(ref.com[:, 2] - ground))
+    c, c_dot, c_ddot = fit_com(
+        target, ref.com[0, :2], height, timestep_s, cfg.period_s, cfg.jerk_weight
+    )
+    return dataclasses.replace(
+        ref,
+        com=np.column_stack([c, ref.com[:, 2]]),
+        com_velocity=np.column_stack([c_dot, ref.com_velocity[:, 2]]),
+        com_acceleration=np.column_stack([c_ddot, ref.com_acceleration[:, 2]]),
+        foot_wrench=np.zeros_like(ref.foot_wrench),
+    )
+
+
+def execution_reference(traj: dict[str, np.ndarray], cfg: ExecuteCfg) -> Reference:
+    """The reference the controller tracks: the TO's trajectory ``traj`` sampled
+    (:func:`locoman.execute.reference.build_reference`), its centre of mass the plan's
+    (``cfg.balance.com_path = plan``) or the LIPM's (``lipm``)."""
+    ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
+    if cfg.balance.com_path == "lipm":
+        ref = balanced_reference(ref, cfg.balance, cfg.timestep_s)
+    return ref
