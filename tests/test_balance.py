@@ -12,14 +12,20 @@ from test_execute import standing_trajectory
 from locoman.config.execute import BalanceCfg, ExecuteCfg
 from locoman.execute.balance import (
     GRAVITY,
+    body_shift,
     effective_zmp,
     execution_reference,
     fit_com,
     support_height,
     zmp_path,
 )
-from locoman.execute.model import SOLES
-from locoman.execute.reference import build_reference, carried
+from locoman.execute.model import PALMS, SOLES
+from locoman.execute.reference import (
+    build_reference,
+    carried,
+    contact_blend,
+    with_hand_clearance,
+)
 from locoman.execute.simulate import palm_torsion
 
 LEFT, RIGHT = np.array([0.0, 0.1]), np.array([0.0, -0.1])
@@ -130,3 +136,49 @@ def test_the_execution_reference_replans_only_the_horizontal_centre_of_mass():
     assert np.all((ref.com[:, 0] > low - 1e-3) & (ref.com[:, 0] < high + 1e-3))
     same = execution_reference(traj, ExecuteCfg(hold_s=0.2, balance=BalanceCfg("plan")))
     np.testing.assert_array_equal(same.com, plan.com)
+
+
+def test_the_contact_blend_is_zero_on_contact_one_far_from_it_and_smooth_between():
+    dt = 0.01
+    touching = np.zeros(200, dtype=bool)
+    touching[100:120] = True
+    w = contact_blend(touching, dt, 0.5)
+    np.testing.assert_array_equal(w[100:120], 0.0)
+    np.testing.assert_array_equal(w[:50], 1.0)
+    np.testing.assert_array_equal(w[170:], 1.0)
+    assert np.all(np.diff(w[50:101]) <= 0) and np.all(np.diff(w[119:171]) >= 0)
+    # C1: its rate goes to zero where it meets 0 and 1 (a linear blend's would be 2 /s),
+    # 1.5 / blend_s at most between.
+    rate = np.diff(w) / dt
+    assert abs(rate[50]) < 0.2 and abs(rate[99]) < 0.2 and np.abs(rate).max() <= 3.0 + 1e-9
+    np.testing.assert_array_equal(contact_blend(np.zeros(5, dtype=bool), dt, 0.5), 1.0)
+
+
+def test_a_free_hand_backs_off_its_normal_and_moves_with_the_body_a_holding_one_does_not():
+    traj = standing_trajectory()
+    nodes = len(traj["dt"])
+    traj["hand_object"] = np.full((nodes, 2), -1)
+    traj["hand_object"][6:, 0] = 0  # the left hand holds from node 6 (0.6 s) on
+    traj["object_q"] = np.zeros((nodes, 1, 6))
+    traj["support_kind"] = np.full((nodes, 1), "surface")
+    cfg = ExecuteCfg(settle_s=0.2, hold_s=0.2, hand_clearance_m=0.05, hand_blend_s=0.3)
+    plan = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
+    ref = with_hand_clearance(plan, cfg.hand_clearance_m, cfg.timestep_s, cfg.hand_blend_s)
+    left, right = PALMS
+    holding = plan.hand_object[:, 0] >= 0
+    np.testing.assert_allclose(
+        ref.frames[left].position[holding], plan.frames[left].position[holding]
+    )
+    offset = ref.frames[right].position - plan.frames[right].position
+    normal = plan.frames[right].rotation[:, :, 2]
+    np.testing.assert_allclose(offset, -0.05 * normal, atol=1e-12)
+    # The velocity the QP tracks is the shifted position's rate.
+    far = ~holding & (np.arange(len(holding)) < np.argmax(holding) - 400)
+    rate = np.gradient(ref.frames[left].position[:, 1], cfg.timestep_s)
+    np.testing.assert_allclose(ref.frames[left].velocity[:, 1], rate, atol=1e-6)
+    assert far.any()
+    # A free hand follows the replanned centre of mass; the holding one stays put.
+    shift = np.ones((len(holding), 3))
+    moved = body_shift(shift, holding, cfg.timestep_s, cfg.hand_blend_s)
+    np.testing.assert_array_equal(moved[holding], 0.0)
+    np.testing.assert_array_equal(moved[far], 1.0)

@@ -80,6 +80,11 @@ class ExecuteCfg:
         swing_foot: A foot off the ground: its sole's pose (6 rows).
         hand: A hand: its palm's pose (6 rows), holding or not.
         posture: Every joint's angle (29 rows).
+        hand_clearance_m: A hand away from its object tracks the plan's palm backed off
+            the contact normal by this [m], coming to the face from outside.
+        hand_blend_s: Time before and after touching an object over which a hand moves
+            from its free reference (backed off, moving with the replanned centre of mass)
+            to the plan's [s].
         force_weight: Weight of the contact wrenches' distance from the TO's [1/N^2].
         contact_kd: Damping of a stance foot's velocity in its contact constraint [1/s].
         min_normal_force_n: Least normal force a stance foot keeps [N].
@@ -106,6 +111,8 @@ class ExecuteCfg:
     swing_foot: TaskCfg = field(default_factory=lambda: TaskCfg(weight=10.0, kp=400.0))
     hand: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=200.0))
     posture: TaskCfg = field(default_factory=lambda: TaskCfg(weight=0.1, kp=100.0))
+    hand_clearance_m: float = 0.03
+    hand_blend_s: float = 0.5
     force_weight: float = 1e-4
     contact_kd: float = 20.0
     min_normal_force_n: float = 5.0
@@ -134,6 +141,8 @@ class ExecuteCfg:
             errors.append(("support_scale", "must be in (0, 1]: a fraction of the sole"))
         if not 0.0 < self.torque_margin <= 1.0:
             errors.append(("torque_margin", "must be in (0, 1]: a fraction of each limit"))
+        if self.hand_clearance_m < 0.0 or self.hand_blend_s <= 0.0:
+            errors.append(("hand_blend_s", "hand_clearance_m >= 0 m, hand_blend_s > 0 s"))
         if self.contact_kd < 0.0:
             errors.append(("contact_kd", "must be >= 0"))
         if self.min_normal_force_n < 0.0 or self.force_weight <= 0.0:

@@ -33,7 +33,13 @@ import numpy as np
 
 from locoman.config.execute import BalanceCfg, ExecuteCfg
 from locoman.execute.model import PALMS, SOLES, execution_model
-from locoman.execute.reference import Reference, build_reference
+from locoman.execute.reference import (
+    Reference,
+    build_reference,
+    contact_blend,
+    translated,
+    with_hand_clearance,
+)
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -172,10 +178,24 @@ def support_height(foot_contact: np.ndarray, sole_height: np.ndarray) -> np.ndar
     return np.where(np.isfinite(ground), ground, sole_height.min(axis=1))
 
 
-def balanced_reference(ref: Reference, cfg: BalanceCfg, timestep_s: float) -> Reference:
+def body_shift(
+    shift: np.ndarray, touching: np.ndarray, timestep_s: float, blend_s: float
+) -> np.ndarray:
+    """(T, 3) the part of the centre of mass's ``shift`` (T, 3) [m] a hand follows: all of it
+    ``blend_s`` [s] or more from any sample ``touching`` (T,) its object, none while it
+    touches (:func:`locoman.execute.reference.contact_blend`). A free hand moves with the
+    body, so that replanning the centre of mass does not push it into the hips; a holding
+    hand stays on its object."""
+    return contact_blend(touching, timestep_s, blend_s)[:, None] * shift
+
+
+def balanced_reference(
+    ref: Reference, cfg: BalanceCfg, timestep_s: float, hand_blend_s: float
+) -> Reference:
     """``ref`` with its horizontal centre of mass replanned by the LIPM (the module's
     docstring), h the mean height of the plan's above the ground, and no foot wrench of the
-    TO's (the QP's least-norm wrenches, their CoP mid-sole, go with it); everything else,
+    TO's (the QP's least-norm wrenches, their CoP mid-sole, go with it); a free hand moves
+    with the centre of mass (:func:`body_shift`, ``hand_blend_s`` [s]); everything else,
     the vertical centre of mass included, is the plan's."""
     soles = np.stack([ref.frames[name].position for name in SOLES], axis=1)
     palms = np.stack([ref.frames[name].position for name in PALMS], axis=1)
@@ -187,8 +207,14 @@ def balanced_reference(ref: Reference, cfg: BalanceCfg, timestep_s: float) -> Re
     c, c_dot, c_ddot = fit_com(
         target, ref.com[0, :2], height, timestep_s, cfg.period_s, cfg.jerk_weight
     )
+    shift = np.column_stack([c - ref.com[:, :2], np.zeros(len(c))])
+    frames = dict(ref.frames)
+    for k, name in enumerate(PALMS):
+        moved = body_shift(shift, ref.hand_object[:, k] >= 0, timestep_s, hand_blend_s)
+        frames[name] = translated(ref.frames[name], moved, timestep_s)
     return dataclasses.replace(
         ref,
+        frames=frames,
         com=np.column_stack([c, ref.com[:, 2]]),
         com_velocity=np.column_stack([c_dot, ref.com_velocity[:, 2]]),
         com_acceleration=np.column_stack([c_ddot, ref.com_acceleration[:, 2]]),
@@ -198,9 +224,11 @@ def balanced_reference(ref: Reference, cfg: BalanceCfg, timestep_s: float) -> Re
 
 def execution_reference(traj: dict[str, np.ndarray], cfg: ExecuteCfg) -> Reference:
     """The reference the controller tracks: the TO's trajectory ``traj`` sampled
-    (:func:`locoman.execute.reference.build_reference`), its centre of mass the plan's
-    (``cfg.balance.com_path = plan``) or the LIPM's (``lipm``)."""
+    (:func:`locoman.execute.reference.build_reference`), the hands approaching their
+    objects from outside (:func:`locoman.execute.reference.with_hand_clearance`), its
+    centre of mass the plan's (``cfg.balance.com_path = plan``) or the LIPM's (``lipm``)."""
     ref = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
+    ref = with_hand_clearance(ref, cfg.hand_clearance_m, cfg.timestep_s, cfg.hand_blend_s)
     if cfg.balance.com_path == "lipm":
-        ref = balanced_reference(ref, cfg.balance, cfg.timestep_s)
+        ref = balanced_reference(ref, cfg.balance, cfg.timestep_s, cfg.hand_blend_s)
     return ref

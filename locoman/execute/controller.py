@@ -14,11 +14,10 @@ the plan's force is fed forward and MuJoCo's contact returns what the object rea
          C_c w_c <= d_c                                   the sole's contact wrench cone
          |M_j a + h_j - J_c,j^T w - J_h,j^T w_h| <= tau_max   29 rows: torque limits
 
-W (:func:`wrench_metric`) weighs a
-moment as the force that makes it at the sole's edge. The tasks t are those of
-:mod:`locoman.execute.tasks`: the centre of mass, the pelvis's and the torso's orientations, each swing foot's
-and each hand's pose, the joints' posture. DAQP solves the dense QP (about 47 unknowns;
-``benchmarks/execute_step.py`` measures it).
+W (:func:`wrench_metric`) weighs a moment as the force that makes it at the sole's edge. The
+tasks t are those of :mod:`locoman.execute.tasks`: the centre of mass, the pelvis's and the
+torso's orientations, each swing foot's and each hand's pose, the joints' posture. DAQP
+solves the dense QP (about 47 unknowns; ``benchmarks/execute_step.py`` measures it).
 """
 
 from __future__ import annotations

@@ -142,6 +142,58 @@ def interpolate_nodes(
     return position, rate, acceleration
 
 
+def time_to_contact(touching: np.ndarray, timestep_s: float) -> np.ndarray:
+    """(T,) each sample's time [s] to the nearest sample where ``touching`` (T,) holds (inf
+    if none does)."""
+    T = len(touching)
+    index = np.arange(T)
+    hits = np.flatnonzero(touching)
+    if len(hits) == 0:
+        return np.full(T, np.inf)
+    nearest = np.clip(np.searchsorted(hits, index), 1, len(hits)) - 1
+    after = np.minimum(nearest + 1, len(hits) - 1)
+    gap = np.minimum(np.abs(index - hits[nearest]), np.abs(index - hits[after]))
+    return gap * timestep_s
+
+
+def contact_blend(touching: np.ndarray, timestep_s: float, blend_s: float) -> np.ndarray:
+    """(T,) 0 where ``touching`` (T,) holds, 1 from ``blend_s`` [s] away from any such
+    sample, a smoothstep 3 s^2 - 2 s^3 of the time to contact between (C1: no jump in the
+    reference's velocity)."""
+    s = np.clip(time_to_contact(touching, timestep_s) / blend_s, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+def translated(frame: FrameReference, shift: np.ndarray, timestep_s: float) -> FrameReference:
+    """``frame`` moved by ``shift`` (T, 3) [m], its velocity and acceleration by the shift's
+    rates (central differences over ``timestep_s`` [s])."""
+    rate = np.gradient(shift, timestep_s, axis=0)
+    velocity = frame.velocity.copy()
+    acceleration = frame.acceleration.copy()
+    velocity[:, :3] += rate
+    acceleration[:, :3] += np.gradient(rate, timestep_s, axis=0)
+    return dataclasses.replace(
+        frame, position=frame.position + shift, velocity=velocity, acceleration=acceleration
+    )
+
+
+def with_hand_clearance(
+    ref: Reference, clearance_m: float, timestep_s: float, blend_s: float
+) -> Reference:
+    """``ref`` with each palm backed off its contact normal by ``clearance_m`` [m] when it is
+    ``blend_s`` [s] or more from touching an object, by none while it touches, a smoothstep
+    between (:func:`contact_blend`): the hand comes to the object's face from outside. The
+    TO passes a palm within 1-2 cm of the face's edge on its way; a few millimetres of
+    tracking error then catch the fingers on the corner and drag the hand."""
+    frames = dict(ref.frames)
+    for k, name in enumerate(PALMS):
+        frame = ref.frames[name]
+        away = contact_blend(ref.hand_object[:, k] >= 0, timestep_s, blend_s)
+        normal = frame.rotation[:, :, 2]  # the palm's outward normal, into the object
+        frames[name] = translated(frame, -clearance_m * away[:, None] * normal, timestep_s)
+    return dataclasses.replace(ref, frames=frames)
+
+
 def carried(traj: dict[str, np.ndarray], node: np.ndarray) -> np.ndarray:
     """(T, 2) whether each hand holds, at nodes ``node`` (T,), an object nothing else
     supports (``support_kind`` none). While a support carries the object too, the TO's
