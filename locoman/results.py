@@ -345,7 +345,13 @@ def execution_cell(data: Path, scenario: str) -> str:
         return f"no: fell at {when} {link}"
     if "completed" in failed:
         return f"no: stopped at {when} {link}"
-    return f"no: {', '.join(failed)} failed {link}"
+    missed = [
+        f"{k.removesuffix('_goal_error_m')} {100 * v:.0f} cm from its goal"
+        for k, v in sorted(metrics.items())
+        if k.endswith("_goal_error_m") and v > metrics.get("goal_tol_m", 0.05)
+    ]
+    others = [check for check in failed if check != "object_goal"]
+    return f"no: up throughout; {'; '.join(missed + others)} {link}"
 
 
 def readme_tables(root: Path = Path(".")) -> str:

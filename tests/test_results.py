@@ -124,6 +124,17 @@ def test_the_execution_row_says_whether_the_g1_carried_it_out(tmp_path):
     assert execution_cell(tmp_path, "tiny") == (
         "no: fell at 1.2 of 6.2 s ([execute](data/tiny/execute/))"
     )
+    dropped = {
+        "success": False,
+        "failed_checks": ["object_goal"],
+        "time_up_s": 6.94,
+        "duration_s": 6.94,
+        "box_goal_error_m": 1.09,
+    }
+    (folder / "metrics.json").write_text(json.dumps(dropped))
+    assert execution_cell(tmp_path, "tiny") == (
+        "no: up throughout; box 109 cm from its goal ([execute](data/tiny/execute/))"
+    )
     carried = {"success": True, "failed_checks": [], "box_goal_error_m": 0.031}
     (folder / "metrics.json").write_text(json.dumps(carried))
     assert execution_cell(tmp_path, "tiny") == (
