@@ -84,7 +84,7 @@ def test_the_fitted_pendulum_follows_its_zmp_target_from_rest_to_rest():
     target[:, 1] = 0.08 * np.sin(np.pi * t / 1.0) * (t > 1.0) * (t < 3.0)  # a sway
     target[:, 0] = np.clip(t - 1.0, 0.0, 2.0) * 0.1  # 20 cm forward
     height = 0.7
-    c, c_dot, c_ddot = fit_com(target, np.zeros(2), height, dt, 0.02, 1e-6)
+    c, c_dot, c_ddot = fit_com(target, np.zeros((3, 2)), height, dt, 0.02, 1e-6)
     # The state integrates: c_dot and c_ddot are c's rates.
     np.testing.assert_allclose(np.diff(c, axis=0) / dt, (c_dot[1:] + c_dot[:-1]) / 2, atol=2e-5)
     zmp = c - height / GRAVITY * c_ddot

@@ -16,6 +16,7 @@ from scipy.optimize import linprog
 from locoman.config.execute import ExecuteCfg
 from locoman.execute.contacts import local_wrench_rows, world_wrench_rows, wrench_bounds
 from locoman.execute.controller import InverseDynamicsQp
+from locoman.execute.grasp import GraspMonitor
 from locoman.execute.model import PALMS, SOLES, execution_model, torque_limits
 from locoman.execute.reference import build_reference, interpolate_nodes, pin_state
 from locoman.execute.simulate import StateMap, execute, execution_mjmodel
@@ -310,3 +311,53 @@ def test_the_palms_and_soles_are_the_tos_contact_points():
     # Standing: the soles on the floor.
     for name in SOLES:
         assert abs(data.oMf[model.getFrameId(name)].translation[2]) < 1e-6
+
+
+def test_the_grasp_monitor_says_when_a_holding_hand_lets_go():
+    """A box in the left palm: held while it touches, lost ``grace`` steps after it is
+    taken away, and a new hold starts afresh; the right hand holds nothing, loses nothing."""
+    spec = g1.g1_mjspec()
+    box = spec.worldbody.add_body()
+    box.name = "box"
+    box.add_freejoint()
+    geom = box.add_geom()
+    geom.type = mujoco.mjtGeom.mjGEOM_BOX
+    geom.size = [0.03, 0.03, 0.03]
+    model = execution_mjmodel(spec, ExecuteCfg())
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    hand = model.body(g1.HAND_LINKS[0]).id
+    palm = next(
+        data.geom_xpos[g].copy()
+        for g in range(model.ngeom)
+        if model.geom_bodyid[g] == hand and model.geom_contype[g]
+    )
+    adr = model.joint(model.body("box").jntadr[0]).qposadr[0]
+    data.qpos[adr : adr + 3] = palm
+    mujoco.mj_forward(model, data)
+    monitor = GraspMonitor.of(model, ["box"], grace_s=0.003, timestep_s=0.001)
+    plan = np.array([0, -1])
+    assert monitor.update(model, data, plan) == []
+    data.qpos[adr : adr + 3] = palm + np.array([0.0, 0.0, 1.0])
+    mujoco.mj_forward(model, data)
+    assert [monitor.update(model, data, plan) for _ in range(4)] == [[], [], [], [0]]
+    assert monitor.update(model, data, plan) == []  # lost once per hold
+    assert monitor.update(model, data, np.array([-1, -1])) == []
+    assert not monitor.lost.any()
+
+
+def test_the_palms_resist_a_twist_only_when_asked():
+    """``execution_mjmodel``'s ``palm_torsion_m``: the palms' collision geoms get MuJoCo's
+    torsional friction (condim 4), nothing else changes."""
+    plain = execution_mjmodel(g1.g1_mjspec(), ExecuteCfg())
+    twisting = execution_mjmodel(g1.g1_mjspec(), ExecuteCfg(), palm_torsion_m=0.02)
+    hands = {plain.body(link).id for link in g1.HAND_LINKS}
+    palms = [
+        g for g in range(plain.ngeom) if plain.geom_bodyid[g] in hands and plain.geom_contype[g]
+    ]
+    others = [g for g in range(plain.ngeom) if g not in palms]
+    assert len(palms) == 2
+    np.testing.assert_array_equal(twisting.geom_condim[palms], 4)
+    np.testing.assert_allclose(twisting.geom_friction[palms, 1], 0.02)
+    np.testing.assert_array_equal(twisting.geom_condim[others], plain.geom_condim[others])
+    np.testing.assert_array_equal(twisting.geom_friction[others], plain.geom_friction[others])

@@ -85,6 +85,8 @@ class ExecuteCfg:
         hand_blend_s: Time before and after touching an object over which a hand moves
             from its free reference (backed off, moving with the replanned centre of mass)
             to the plan's [s].
+        grasp_grace_s: A hand the plan has holding an object that has not touched it for
+            this long has lost it (``grasps_lost`` in the metrics) [s].
         force_weight: Weight of the contact wrenches' distance from the TO's [1/N^2].
         contact_kd: Damping of a stance foot's velocity in its contact constraint [1/s].
         min_normal_force_n: Least normal force a stance foot keeps [N].
@@ -113,6 +115,7 @@ class ExecuteCfg:
     posture: TaskCfg = field(default_factory=lambda: TaskCfg(weight=0.1, kp=100.0))
     hand_clearance_m: float = 0.03
     hand_blend_s: float = 0.5
+    grasp_grace_s: float = 0.25
     force_weight: float = 1e-4
     contact_kd: float = 20.0
     min_normal_force_n: float = 5.0
@@ -141,6 +144,8 @@ class ExecuteCfg:
             errors.append(("support_scale", "must be in (0, 1]: a fraction of the sole"))
         if not 0.0 < self.torque_margin <= 1.0:
             errors.append(("torque_margin", "must be in (0, 1]: a fraction of each limit"))
+        if self.grasp_grace_s <= 0.0:
+            errors.append(("grasp_grace_s", "must be > 0 s"))
         if self.hand_clearance_m < 0.0 or self.hand_blend_s <= 0.0:
             errors.append(("hand_blend_s", "hand_clearance_m >= 0 m, hand_blend_s > 0 s"))
         if self.contact_kd < 0.0:

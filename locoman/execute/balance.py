@@ -125,27 +125,27 @@ def _triple_integrator(step: float) -> tuple[np.ndarray, np.ndarray]:
 
 def fit_com(
     target: np.ndarray,
-    start: np.ndarray,
+    initial: np.ndarray,
     height: float,
     timestep_s: float,
     period_s: float,
     jerk_weight: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(c, c_dot, c_ddot), each (T, 2), of the LIPM whose ZMP c - h c_ddot / g best follows
-    ``target`` (T, 2) [m] sampled every ``timestep_s`` [s]: from rest at ``start`` (2,) [m],
-    jerk constant over each ``period_s`` [s] (rounded to a multiple of the timestep),
-    weighted ``jerk_weight`` [s^6] against the ZMP's error at the pieces' starts, and at
-    rest at the end."""
+    ``target`` (T, 2) [m] sampled every ``timestep_s`` [s]: from the state ``initial``
+    (3, 2) (c [m], c_dot [m/s], c_ddot [m/s^2]), jerk constant over each ``period_s`` [s]
+    (rounded to a multiple of the timestep), weighted ``jerk_weight`` [s^6] against the
+    ZMP's error at the pieces' starts, and at rest at the end."""
     T = len(target)
     stride = max(1, round(period_s / timestep_s))
     K = -(-T // stride)  # jerk pieces; the fit looks at the samples 0, stride, ...
     a_k, b_k = _triple_integrator(stride * timestep_s)
     # x_k = A^k x_0 + sum_{l<k} A^(k-1-l) B u_l, k = 0..K.
-    powers = [np.eye(3)]
-    for _ in range(K):
-        powers.append(a_k @ powers[-1])
+    powers = np.zeros((K + 1, 3, 3))
+    powers[0] = np.eye(3)
     gain = np.zeros((K + 1, 3, K))
     for k in range(1, K + 1):
+        powers[k] = a_k @ powers[k - 1]
         gain[k] = a_k @ gain[k - 1]
         gain[k, :, k - 1] += b_k
     zmp_row = np.array([1.0, 0.0, -height / GRAVITY])
@@ -153,21 +153,19 @@ def fit_com(
     end = gain[K, 1:]  # velocity and acceleration at the end
     rest_weight = 1e3
     lhs = zmp_gain.T @ zmp_gain + jerk_weight * np.eye(K) + rest_weight * end.T @ end
-    a1, b1 = _triple_integrator(timestep_s)
-    out = np.zeros((T, 3, 2))
-    for axis in range(2):
-        x0 = np.array([start[axis], 0.0, 0.0])
-        free = np.array([zmp_row @ powers[k] @ x0 for k in range(K)])
-        rhs = (
-            zmp_gain.T @ (target[::stride, axis] - free)
-            - rest_weight * end.T @ (powers[K] @ x0)[1:]
-        )
-        jerk = np.linalg.solve(lhs, rhs)
-        x = x0
-        for i in range(T):
-            out[i, :, axis] = x
-            x = a1 @ x + b1 * jerk[i // stride]
-    return out[:, 0], out[:, 1], out[:, 2]
+    free = powers @ np.asarray(initial, dtype=float)  # (K + 1, 3, 2): no jerk
+    rhs = zmp_gain.T @ (target[::stride] - np.einsum("j,kja->ka", zmp_row, free[:K]))
+    rhs -= rest_weight * end.T @ free[K, 1:]
+    jerk = np.linalg.solve(lhs, rhs)  # (K, 2)
+    coarse = free + np.einsum("kjl,la->kja", gain, jerk)  # (K + 1, 3, 2)
+    # Between the pieces' starts, the exact polynomial of a constant jerk.
+    piece = np.arange(T) // stride
+    tau = ((np.arange(T) - piece * stride) * timestep_s)[:, None]
+    x, u = coarse[piece], jerk[piece]
+    c = x[:, 0] + tau * x[:, 1] + tau**2 / 2 * x[:, 2] + tau**3 / 6 * u
+    c_dot = x[:, 1] + tau * x[:, 2] + tau**2 / 2 * u
+    c_ddot = x[:, 2] + tau * u
+    return c, c_dot, c_ddot
 
 
 def support_height(foot_contact: np.ndarray, sole_height: np.ndarray) -> np.ndarray:
@@ -204,9 +202,8 @@ def balanced_reference(
     zmp = zmp_path(ref.foot_contact, soles[..., :2], ref.com[0, :2])
     target = effective_zmp(zmp, ref.hand_wrench, palms, ground, mass)
     height = float(np.mean(ref.com[:, 2] - ground))
-    c, c_dot, c_ddot = fit_com(
-        target, ref.com[0, :2], height, timestep_s, cfg.period_s, cfg.jerk_weight
-    )
+    initial = np.vstack([ref.com[0, :2], np.zeros((2, 2))])  # standing still
+    c, c_dot, c_ddot = fit_com(target, initial, height, timestep_s, cfg.period_s, cfg.jerk_weight)
     shift = np.column_stack([c - ref.com[:, :2], np.zeros(len(c))])
     frames = dict(ref.frames)
     for k, name in enumerate(PALMS):

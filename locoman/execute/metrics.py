@@ -117,6 +117,10 @@ def execution_metrics(
         "duration_s": float(ref.time[-1]),
         "time_up_s": float(executed.time[-1] + (ref.time[1] - ref.time[0])) if n else 0.0,
         "min_pelvis_height_m": float(height.min()) if n else None,
+        "grasps_lost": [
+            {"t_s": t, "hand": ("left", "right")[hand], "object": names[obj]}
+            for t, hand, obj in executed.lost_grasps
+        ],
         "tracking_rmse_m": {
             "base": rmse(actual[:, 0], planned[:, 0]),
             "feet": rmse(actual[:, 1:3], planned[:, 1:3]),

@@ -18,6 +18,7 @@ import numpy as np
 from locoman.config.execute import ExecuteCfg
 from locoman.errors import SolverError
 from locoman.execute.controller import Command, InverseDynamicsQp
+from locoman.execute.grasp import GraspMonitor
 from locoman.execute.model import execution_model, torque_limits
 from locoman.execute.reference import Reference
 from locoman.retarget.robot import contact_frames
@@ -134,6 +135,8 @@ class Execution:
         object_position: (T, M, 3) [m]; ``object_rotation`` (T, M, 3, 3).
         qpos: (T, nq) MuJoCo's state (for the pictures).
         solve_time_s: (T,) the QP's time per step [s].
+        lost_grasps: (time [s], hand (0 left, 1 right), object) of each hold a hand lost
+            (:class:`locoman.execute.grasp.GraspMonitor`).
         completed: Whether every step ran (False: the QP failed, the robot fell, or the
             simulation diverged, ``stopped`` says which).
         stopped: Why it stopped early ('' when it completed).
@@ -150,6 +153,7 @@ class Execution:
     object_rotation: np.ndarray
     qpos: np.ndarray
     solve_time_s: np.ndarray
+    lost_grasps: list[tuple[float, int, int]]
     completed: bool
     stopped: str
 
@@ -187,10 +191,14 @@ def execute(
     half = contact_frames().sole_half_extents
     controller = InverseDynamicsQp(execution_model(), cfg, half, friction)
     total = len(ref) if steps < 0 else min(steps, len(ref))
+    monitor = GraspMonitor.of(model, objects, cfg.grasp_grace_s, cfg.timestep_s)
     log_rows: list[tuple] = []
+    lost: list[tuple[float, int, int]] = []
     stopped = ""
     for i in range(total):
         q, v = states.pin_state(data)
+        for hand in monitor.update(model, data, ref.hand_object[i]):
+            lost.append((float(data.time), hand, int(ref.hand_object[i, hand])))
         try:
             command: Command = controller.step(q, v, ref, i)
         except SolverError as exc:
@@ -210,10 +218,10 @@ def execute(
             break
     if stopped:
         log.warning("execution stopped early: %s", stopped)
-    return _execution(log_rows, model, states, objects, completed=not stopped, stopped=stopped)
+    return _execution(log_rows, model, states, objects, lost, not stopped, stopped)
 
 
-def _execution(rows, model, states, objects, completed, stopped) -> Execution:
+def _execution(rows, model, states, objects, lost, completed, stopped) -> Execution:
     data = mujoco.MjData(model)
     positions, rotations = [], []
     for row in rows:
@@ -234,6 +242,7 @@ def _execution(rows, model, states, objects, completed, stopped) -> Execution:
         object_rotation=np.array(rotations).reshape(count, len(objects), 3, 3),
         qpos=np.array([r[4] for r in rows]),
         solve_time_s=np.array([r[3].solve_time_s for r in rows]),
+        lost_grasps=lost,
         completed=completed,
         stopped=stopped,
     )
