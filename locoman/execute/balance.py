@@ -44,23 +44,6 @@ from locoman.execute.reference import (
 GRAVITY = 9.81  # [m/s^2]
 
 
-@dataclasses.dataclass(frozen=True)
-class ComPath:
-    """A horizontal centre-of-mass trajectory at the controller's samples.
-
-    Attributes:
-        position: (T, 2) [m]; ``velocity`` [m/s] and ``acceleration`` [m/s^2] the same shape.
-        zmp: (T, 2) the ZMP path it was fitted to (z_ref, before the hands' shift) [m].
-        height: The pendulum's height h [m].
-    """
-
-    position: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    zmp: np.ndarray
-    height: float
-
-
 def zmp_path(foot_contact: np.ndarray, soles: np.ndarray, start: np.ndarray) -> np.ndarray:
     """(T, 2) z_ref [m]: the stance sole's centre in single support, in double support a
     straight line from the sole the weight leaves to the sole it goes to; before the first
