@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pinocchio as pin
 
 from locoman.config.execute import BalanceCfg, ExecuteCfg
 from locoman.execute.model import PALMS, SOLES, execution_model
@@ -181,7 +182,7 @@ def balanced_reference(
     soles = np.stack([ref.frames[name].position for name in SOLES], axis=1)
     palms = np.stack([ref.frames[name].position for name in PALMS], axis=1)
     ground = support_height(ref.foot_contact, soles[..., 2])
-    mass = float(sum(inertia.mass for inertia in execution_model().inertias))
+    mass = pin.computeTotalMass(execution_model())
     zmp = zmp_path(ref.foot_contact, soles[..., :2], ref.com[0, :2])
     target = effective_zmp(zmp, ref.hand_wrench, palms, ground, mass)
     height = float(np.mean(ref.com[:, 2] - ground))
