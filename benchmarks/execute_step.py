@@ -10,11 +10,13 @@ assembly and DAQP's solve) and MuJoCo's step, medians and 99th percentiles over 
 then the median over the runs. The QPs of the last run are solved again by DAQP and, where it
 is installed (it is not a dependency), by proxsuite's dense solver, cold and warm started. And
 how far the plan's centroidal dynamics, sampled as the reference samples it, lie from the
-TO's wrenches, and what the plan asks of the G1's joints and soles.
+TO's wrenches, and what the plan asks of the G1's joints and soles, its two-handed carries
+also with the least grip friction allows (:func:`least_grip`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import daqp
@@ -137,9 +139,10 @@ def centroidal_residuals(ref) -> dict:
     }
 
 
-def plan_demands(ref, half_extents: np.ndarray) -> dict:
+def plan_demands(ref, half_extents: np.ndarray, joints: tuple[str, ...] = G1_JOINT_NAMES) -> dict:
     """What the plan asks of the G1: each joint's largest torque by inverse dynamics at the
-    reference with the TO's wrenches, as a fraction of its limit (the five largest), and the
+    reference with the TO's wrenches, as a fraction of its limit (the five largest of
+    ``joints``), and the
     median of each stance CoP's distance from the sole's centre as a fraction of its half
     length (x) and half width (y), over the motion."""
     model = execution_model()
@@ -169,12 +172,40 @@ def plan_demands(ref, half_extents: np.ndarray) -> dict:
                         [abs(m[1] / f[2]) / half_extents[0], abs(m[0] / f[2]) / half_extents[1]]
                     )
         worst = np.maximum(worst, np.abs(tau[6:]) / limits)
-    order = np.argsort(-worst)[:5]
+    among = np.array([name in joints for name in G1_JOINT_NAMES])
+    order = np.argsort(-np.where(among, worst, -1.0))[:5]
     median = np.median(np.array(cop), axis=0)
     return {
         "torque_fraction_max": {G1_JOINT_NAMES[j]: float(worst[j]) for j in order},
         "cop_fraction_median": {"x": float(median[0]), "y": float(median[1])},
     }
+
+
+ARM_JOINTS = tuple(n for n in G1_JOINT_NAMES if any(p in n for p in ("shoulder", "elbow", "wrist")))
+
+
+def least_grip(ref, friction: float):
+    """``ref`` with each two-handed carry's hand wrenches replaced by the least a friction
+    grip needs: the plan's net force of the object on the hands shared equally, each palm
+    pressing along its normal n only as hard as friction requires, |f_t| / mu (the TO's split
+    puts opposing shears of up to 25 N on tiny's palms), no moments."""
+    wrench = ref.hand_wrench.copy()
+    if friction <= 0.0:  # no objects
+        return ref
+    both = (
+        (ref.hand_object[:, 0] >= 0)
+        & (ref.hand_object[:, 0] == ref.hand_object[:, 1])
+        & (np.abs(wrench).sum(axis=2) > 0).all(axis=1)
+    )
+    for i in np.flatnonzero(both):
+        share = wrench[i, :, :3].sum(axis=0) / 2
+        for k, frame in enumerate(PALMS):
+            n = ref.frames[frame].rotation[i, :, 2]  # the palm's normal, into the object
+            push = -share @ n  # the object pushing the palm back [N]
+            tangential = share + push * n
+            push = max(push, np.linalg.norm(tangential) / friction)
+            wrench[i, k] = np.r_[tangential - push * n, np.zeros(3)]
+    return dataclasses.replace(ref, hand_wrench=wrench)
 
 
 def measure(scenario: str, repeats: int) -> dict:
@@ -217,7 +248,13 @@ def measure(scenario: str, repeats: int) -> dict:
     # What the TO's plan itself asks (its centre of mass and wrenches, not the LIPM's).
     plan = build_reference(traj, cfg.timestep_s, cfg.settle_s, cfg.hold_s)
     out["reference_vs_to_wrenches"] = centroidal_residuals(plan)
-    out["plan_demands"] = plan_demands(plan, contact_frames().sole_half_extents)
+    half = contact_frames().sole_half_extents
+    out["plan_demands"] = plan_demands(plan, half)
+    # The same motion with the least grip friction allows: what no controller can lower.
+    mu = float(np.max(traj["object_friction"], initial=0.0))
+    out["plan_demands"]["least_grip_arm_torque_fraction_max"] = plan_demands(
+        least_grip(plan, mu), half, ARM_JOINTS
+    )["torque_fraction_max"]
     out["qp_solvers"] = {
         "qps": len(qps),
         "unknowns_median": float(np.median([len(q[1]) for q in qps])),
