@@ -186,9 +186,11 @@ ARM_JOINTS = tuple(n for n in G1_JOINT_NAMES if any(p in n for p in ("shoulder",
 
 def least_grip(ref, friction: float):
     """``ref`` with each two-handed carry's hand wrenches replaced by the least a friction
-    grip needs: the plan's net force of the object on the hands shared equally, each palm
-    pressing along its normal n only as hard as friction requires, |f_t| / mu (the TO's split
-    puts opposing shears of up to 25 N on tiny's palms), no moments."""
+    grip needs: the plan's net force of the object on the hands shared equally, f_k = f/2 -
+    s n_k, with n_k palm k's normal into the object and s >= 0 the least common squeeze that
+    puts both palms inside their cones, |f_t| <= mu f_n; no moments (the TO's split puts
+    opposing shears of up to 25 N on tiny's palms). For palms facing each other (n_l = -n_r)
+    the squeezes cancel and the net force is the plan's."""
     wrench = ref.hand_wrench.copy()
     if friction <= 0.0:  # no objects
         return ref
@@ -199,12 +201,14 @@ def least_grip(ref, friction: float):
     )
     for i in np.flatnonzero(both):
         share = wrench[i, :, :3].sum(axis=0) / 2
-        for k, frame in enumerate(PALMS):
-            n = ref.frames[frame].rotation[i, :, 2]  # the palm's normal, into the object
-            push = -share @ n  # the object pushing the palm back [N]
-            tangential = share + push * n
-            push = max(push, np.linalg.norm(tangential) / friction)
-            wrench[i, k] = np.r_[tangential - push * n, np.zeros(3)]
+        normals = [ref.frames[frame].rotation[i, :, 2] for frame in PALMS]
+        squeeze = 0.0
+        for n in normals:
+            push = -share @ n  # the shared load pushing the palm back [N]
+            need = np.linalg.norm(share + push * n) / friction
+            squeeze = max(squeeze, need - push)
+        for k, n in enumerate(normals):
+            wrench[i, k] = np.r_[share - squeeze * n, np.zeros(3)]
     return dataclasses.replace(ref, hand_wrench=wrench)
 
 
