@@ -32,6 +32,21 @@ class TaskCfg:
         return self.kd if self.kd > 0.0 else 2.0 * self.kp**0.5
 
 
+@dataclass
+class MomentumCfg:
+    """The centroidal angular momentum task: the QP asks dL/dt = -gain L of the momentum L
+    about the centre of mass [kg m^2/s] (Orin, Goswami and Lee 2013's A_G), its reference
+    zero, as the linear inverted pendulum of the centre-of-mass reference has it.
+
+    Attributes:
+        weight: Weight in the cost [1 per (N m)^2].
+        gain: Rate at which the momentum is asked to decay [1/s].
+    """
+
+    weight: float = 1.0
+    gain: float = 10.0
+
+
 COM_PATHS = ("plan", "lipm")
 
 
@@ -77,6 +92,9 @@ class ExecuteCfg:
         torso_orientation: The torso's (3 rows): without it the QP moves the centre of
             mass with the heavy torso, leaning it back against the waist pitch's limit,
             the hands 10-25 cm off.
+        angular_momentum: The centroidal angular momentum (3 rows): without it the QP
+            swings the trunk and arms to move the centre of mass, and in single support the
+            CoM drifts sideways off the stance sole (S1 fell at 2.9 s, its third step).
         swing_foot: A foot off the ground: its sole's pose (6 rows).
         hand: A hand: its palm's pose (6 rows), holding or not.
         posture: Every joint's angle (29 rows).
@@ -95,7 +113,8 @@ class ExecuteCfg:
             edge rolls the foot over it.
         torque_margin: Fraction of each joint's torque limit the QP may use.
         fallen_height_m: The pelvis below this height counts as a fall [m].
-        fallen_tilt_rad: The pelvis tilted more than this counts as a fall [rad].
+        fallen_tilt_rad: The pelvis tilted more than this from the plan's pelvis counts as a
+            fall [rad] (S1's plan bends it 1.06 rad to pick its basket up).
         goal_tol_m: An object's final distance from its goal allowed [m].
         goal_yaw_tol_rad: Its final yaw error allowed [rad].
         penetration_tol_m: Deepest unscheduled contact allowed [m] (the evaluation's bound).
@@ -110,6 +129,7 @@ class ExecuteCfg:
     com: TaskCfg = field(default_factory=lambda: TaskCfg(weight=100.0, kp=100.0))
     base_orientation: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=100.0))
     torso_orientation: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=100.0))
+    angular_momentum: MomentumCfg = field(default_factory=MomentumCfg)
     swing_foot: TaskCfg = field(default_factory=lambda: TaskCfg(weight=10.0, kp=400.0))
     hand: TaskCfg = field(default_factory=lambda: TaskCfg(weight=1.0, kp=200.0))
     posture: TaskCfg = field(default_factory=lambda: TaskCfg(weight=0.1, kp=100.0))
@@ -140,6 +160,8 @@ class ExecuteCfg:
             task = getattr(self, name)
             if task.weight < 0.0 or task.kp < 0.0 or task.kd < 0.0:
                 errors.append((name, "weight, kp and kd must be >= 0"))
+        if self.angular_momentum.weight < 0.0 or self.angular_momentum.gain < 0.0:
+            errors.append(("angular_momentum", "weight and gain must be >= 0"))
         if not 0.0 < self.support_scale <= 1.0:
             errors.append(("support_scale", "must be in (0, 1]: a fraction of the sole"))
         if not 0.0 < self.torque_margin <= 1.0:

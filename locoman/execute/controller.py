@@ -15,9 +15,10 @@ the plan's force is fed forward and MuJoCo's contact returns what the object rea
          |M_j a + h_j - J_c,j^T w - J_h,j^T w_h| <= tau_max   29 rows: torque limits
 
 W (:func:`wrench_metric`) weighs a moment as the force that makes it at the sole's edge. The
-tasks t are those of :mod:`locoman.execute.tasks`: the centre of mass, the pelvis's and the
-torso's orientations, each swing foot's and each hand's pose, the joints' posture. DAQP
-solves the dense QP (about 47 unknowns; ``benchmarks/execute_step.py`` measures it).
+tasks t are those of :mod:`locoman.execute.tasks`: the centre of mass, the centroidal angular
+momentum, the pelvis's and the torso's orientations, each swing foot's and each hand's pose,
+the joints' posture. DAQP solves the dense QP (about 47 unknowns;
+``benchmarks/execute_step.py`` measures it).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from locoman.errors import SolverError
 from locoman.execute.contacts import local_wrench_rows, world_wrench_rows, wrench_bounds
 from locoman.execute.model import BASE, PALMS, SOLES, TORSO, torque_limits
 from locoman.execute.reference import Reference
-from locoman.execute.tasks import pd_target, pose_error, posture_rows
+from locoman.execute.tasks import angular_momentum_rows, pd_target, pose_error, posture_rows
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _EQUALITY = 5  # DAQP's sense: active and immutable
@@ -120,6 +121,7 @@ class InverseDynamicsQp:
     def _kinematics(self, q: np.ndarray, v: np.ndarray) -> None:
         m, d = self.model, self.data
         pin.computeAllTerms(m, d, q, v)  # M, h, joint Jacobians, com, vcom, Jcom
+        pin.computeCentroidalMapTimeVariation(m, d, q, v)  # A_G, dA_G/dt
         pin.forwardKinematics(m, d, q, v, self._zero)  # drifts: accelerations at a = 0
         pin.updateFramePlacements(m, d)
         pin.centerOfMass(m, d, q, v, self._zero)
@@ -166,6 +168,8 @@ class InverseDynamicsQp:
                 self._task(rows, cfg.swing_foot, feet[k], ref.frames[name], i, slice(0, 6))
         for k, name in enumerate(PALMS):
             self._task(rows, cfg.hand, palms[k], ref.frames[name], i, slice(0, 6))
+        a_mom, b_mom = angular_momentum_rows(cfg.angular_momentum, d.Ag, d.dAg, v)
+        rows.append((cfg.angular_momentum.weight, a_mom, b_mom))
         a_post, b_post = posture_rows(cfg.posture, q, v, ref.q[i], ref.v[i], ref.a[i])
         rows.append((cfg.posture.weight, a_post, b_post))
         # Cost over x = (a, w).

@@ -3,7 +3,7 @@
 Checks (``failed_checks`` names those that fail; ``success`` is none failing):
     * ``completed``: every control step ran (no QP failure, no fall, no divergence);
     * ``stayed_up``: the pelvis above ``fallen_height_m`` and tilted less than
-      ``fallen_tilt_rad`` throughout;
+      ``fallen_tilt_rad`` from the plan's throughout;
     * ``object_goal``: each object with a goal ends within ``goal_tol_m`` (xy) and
       ``goal_yaw_tol_rad`` of it;
     * ``torque_limits``: no torque beyond its joint's limit;

@@ -19,7 +19,7 @@ from locoman.config.execute import ExecuteCfg
 from locoman.errors import SolverError
 from locoman.execute.controller import Command, InverseDynamicsQp
 from locoman.execute.grasp import GraspMonitor
-from locoman.execute.model import execution_model, torque_limits
+from locoman.execute.model import BASE, execution_model, torque_limits
 from locoman.execute.reference import Reference
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
@@ -65,6 +65,13 @@ def execution_mjmodel(
                     geom.condim = 4
                     geom.friction = [geom.friction[0], palm_torsion_m, geom.friction[2]]
     return spec.compile()
+
+
+def tilt_from(rotation: np.ndarray, planned: np.ndarray) -> float:
+    """The angle [rad] between a frame's vertical axis (``rotation`` (3, 3), world axes) and
+    the plan's (``planned``): how far the pelvis leans beyond the plan's lean (S1's plan
+    bends it 1.06 rad to pick its basket up; an absolute bound called that a fall)."""
+    return float(np.arccos(np.clip(rotation[:, 2] @ planned[:, 2], -1.0, 1.0)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -210,7 +217,7 @@ def execute(
         if not np.all(np.isfinite(data.qpos)):
             stopped = f"simulation diverged at t = {data.time:.3f} s"
             break
-        tilt = float(np.arccos(np.clip(quat_wxyz_to_matrix(data.qpos[3:7])[2, 2], -1, 1)))
+        tilt = tilt_from(quat_wxyz_to_matrix(data.qpos[3:7]), ref.frames[BASE].rotation[i])
         if data.qpos[2] < cfg.fallen_height_m or tilt > cfg.fallen_tilt_rad:
             stopped = (
                 f"fell at t = {data.time:.3f} s (pelvis {data.qpos[2]:.2f} m, tilt {tilt:.2f} rad)"

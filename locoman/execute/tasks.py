@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from locoman.config.execute import TaskCfg
+from locoman.config.execute import MomentumCfg, TaskCfg
 
 
 def pose_error(
@@ -51,3 +51,14 @@ def posture_rows(
     a_matrix[:, 6:] = np.eye(nj)
     b = pd_target(cfg, q_ref[7:] - q[7:], v[6:], v_ref[6:], a_ref[6:], 0.0)
     return a_matrix, b
+
+
+def angular_momentum_rows(
+    cfg: MomentumCfg, centroidal_map: np.ndarray, map_rate: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(A (3, nv), b (3,)) of the centroidal angular momentum L = A_G,ang v [kg m^2/s]:
+    dL/dt = A_G,ang a + dA_G,ang v asked to be -gain L (TSID's ``TaskAMEquality`` with a
+    zero reference). ``centroidal_map`` and ``map_rate`` are A_G and dA_G/dt (6, nv),
+    Pinocchio's ``computeCentroidalMapTimeVariation`` (linear rows first)."""
+    angular, rate = centroidal_map[3:], map_rate[3:]
+    return angular, -cfg.gain * (angular @ v) - rate @ v
