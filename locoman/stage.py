@@ -15,7 +15,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from locoman.artifacts.folder import staging_folder, swap_in
+from locoman.artifacts.folder import locked, staging_folder, swap_in
 from locoman.errors import ConfigError, LocomanError
 
 DATA_DIR = Path("data")
@@ -183,4 +183,7 @@ def run_stage(main: Callable[..., Path], argv: list[str]) -> None:
         sys.exit(2)
     out = outputs.final(out)
     outputs.commit()
-    print(summary_line(stage, argv, out), flush=True)
+    # Under the folder's lock: a run of the same stage finishing now swaps the folder away.
+    with locked(out):
+        line = summary_line(stage, argv, out)
+    print(line, flush=True)
