@@ -1,5 +1,6 @@
-"""The centroidal angular momentum task and the fall check (locoman.execute): the task's
-rows against Pinocchio's momentum and its finite differences, the tilt from the plan."""
+"""The centroidal angular momentum task, the fall check and the touchdown heights
+(locoman.execute): the task's rows against Pinocchio's momentum and its finite differences,
+the tilt from the plan's pelvis, a sole's height where the plan puts it down."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from locoman.config.execute import ExecuteCfg, MomentumCfg
+from locoman.execute.metrics import touchdown_heights
 from locoman.execute.model import execution_model
 from locoman.execute.simulate import tilt_from
 from locoman.execute.tasks import angular_momentum_rows
@@ -73,3 +75,13 @@ def test_the_tilt_is_measured_from_the_plans_pelvis(roll, pitch, yaw, extra):
 def test_a_negative_momentum_gain_is_refused():
     cfg = ExecuteCfg(angular_momentum=MomentumCfg(weight=1.0, gain=-1.0))
     assert [name for name, _ in cfg.check()] == ["angular_momentum"]
+
+
+def test_touchdown_heights_are_read_where_the_plan_puts_a_foot_down():
+    contact = np.array([[1, 1], [1, 0], [1, 0], [1, 1], [0, 1], [1, 1]], dtype=bool)
+    planned = np.zeros((6, 2, 3))
+    soles = np.zeros((6, 2, 3))
+    soles[3, 1, 2] = 0.02  # the right foot 2 cm up when the plan lands it at sample 3
+    soles[5, 0, 2] = -0.001  # the left one 1 mm into the floor at sample 5
+    heights = touchdown_heights(contact, soles, planned)
+    assert heights == [0.02, -0.001]

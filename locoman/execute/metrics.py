@@ -65,6 +65,19 @@ def stance_slip(stance: np.ndarray, soles: np.ndarray) -> float:
     return worst
 
 
+def touchdown_heights(foot_contact: np.ndarray, soles: np.ndarray, planned: np.ndarray) -> list:
+    """How high [m] above its planned footprint each sole was when the plan put it down: at
+    each sample where ``foot_contact`` (T, 2) turns true, the executed sole centre's height
+    (``soles`` (T, 2, 3)) minus the plan's (``planned``), in time order. The controller
+    holds a stance sole still: one that lags its swing lands late, or never (the falls of
+    S1 and S2 follow touchdowns 1.5-3 cm high)."""
+    heights = []
+    for i in np.flatnonzero((foot_contact[1:] & ~foot_contact[:-1]).any(axis=1)) + 1:
+        for foot in np.flatnonzero(foot_contact[i] & ~foot_contact[i - 1]):
+            heights.append(float(soles[i, foot, 2] - planned[i, foot, 2]))
+    return heights
+
+
 def unscheduled_penetration(
     model: mujoco.MjModel, executed: Execution, ref: Reference, objects: list[str]
 ) -> tuple[float, str]:
@@ -129,6 +142,9 @@ def execution_metrics(
         },
         "com_rmse_m": rmse(_coms(executed.q), ref.com[:n]),
         "foot_slip_max_m": stance_slip(executed.stance, actual[:, 1:3]),
+        "touchdown_heights_m": touchdown_heights(
+            ref.foot_contact[:n], actual[:, 1:3], planned[:, 1:3]
+        ),
         "peak_torque_fraction": float(np.max(np.abs(executed.tau) / limits)) if n else 0.0,
         "steps_beyond_torque_limits": int(executed.limits_dropped.sum()),
         "qp_time_median_ms": float(np.median(executed.solve_time_s) * 1e3) if n else 0.0,
