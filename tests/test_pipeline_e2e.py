@@ -189,12 +189,16 @@ def _pole_depth(scene_dir: Path, solve_dir: Path) -> float:
     return by_body["pole"].depth_m if "pole" in by_body else 0.0
 
 
-def _solve_beside(workdir: Path, scene_dir: Path, out: Path, monkeypatch, **collision) -> dict:
+def _solve_beside(
+    workdir: Path, scene_dir: Path, out: Path, monkeypatch, contact=None, **collision
+) -> dict:
     """tiny's solve on ``scene_dir`` with tiny's contacts and keyframes (the pole is not in
-    them), the compiled terms of the checkout; its metrics."""
+    them), the compiled terms of the checkout, ``contact`` and ``collision`` settings
+    changed; its metrics."""
     monkeypatch.setenv(CACHE_ENV, str(Path(__file__).resolve().parents[1] / ".cache" / "casadi"))
     cfg = scenario_solve(load_params(workdir / "params.yaml").solve, "tiny")
     cfg = dataclasses.replace(cfg, collision=dataclasses.replace(cfg.collision, **collision))
+    cfg = dataclasses.replace(cfg, contact=dataclasses.replace(cfg.contact, **(contact or {})))
     root = workdir / "data" / "tiny"
     solve_scenario(scene_dir, root / "contacts", root / "retarget", out, cfg)
     return json.loads((out / "metrics.json").read_text())
@@ -215,3 +219,34 @@ def test_after_the_subgraph_a_pole_the_starting_set_misses_is_found_and_the_arm_
     pole_rounds = [r for r in metrics["collision_rounds"] if "pole" in r["deepest_pair"]]
     assert pole_rounds and all(r["pairs_added"] > 0 for r in pole_rounds)
     assert _pole_depth(scene, tmp_path / "solve") == 0.0
+
+
+def test_after_the_subgraph_the_arm_torque_bound_holds_at_every_holding_node(
+    workdir, tmp_path, monkeypatch
+):
+    """``solve.contact.arm_torque_margin``: tiny's solution (its arms at up to 166 % of a
+    wrist's limit without the bound) keeps every holding arm's static torques, by
+    Pinocchio's RNEA with the solved hand wrench, within the margin."""
+    from test_to_actuation import _pinocchio_arm_torques
+
+    from locoman.scene import g1
+    from locoman.to.terms.actuation import arm_limits
+
+    metrics = _solve_beside(
+        workdir,
+        workdir / "data" / "tiny" / "scene",
+        tmp_path / "solve",
+        monkeypatch,
+        contact={"arm_torque_margin": 0.9},
+    )
+    assert metrics["success"], metrics["status"]
+    traj = read_npz(tmp_path / "solve" / TRAJECTORY_FILE, TRAJECTORY)
+    worst = 0.0
+    for k in range(len(traj["q"]) - 1):
+        for side in range(2):
+            if traj["hand_object"][k, side] < 0:
+                continue
+            q = g1.q35_to_pin(traj["q"][k])
+            tau, _, _ = _pinocchio_arm_torques(q, side, traj["hand_wrench"][k, side])
+            worst = max(worst, float(np.max(np.abs(tau) / arm_limits(side))))
+    assert 0.5 < worst <= 0.9 + 1e-3

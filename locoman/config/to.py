@@ -410,6 +410,9 @@ class ContactCfg:
         sole_cone: The yaw moment a sole may carry: ``paper`` (3c), |tau_z| <= mu max(X, Y)
             f_z, or ``exact``, the rows of its four corners' friction pyramids (Caron et al.
             2015, the execution's cone), which (3c) exceeds near the sole's edges.
+        arm_torque_margin: While a hand holds an object, each arm joint's static torque
+            stays within this fraction of its URDF effort limit (beyond paper A:
+            :mod:`locoman.to.terms.actuation`); 0 leaves the arms unbounded, as the paper.
     """
 
     floor_friction: float = 0.8
@@ -419,9 +422,12 @@ class ContactCfg:
     slack_max_m: float | None = 0.004
     sole_support_scale: float = 1.0
     sole_cone: str = "paper"
+    arm_torque_margin: float = 0.0
 
     def check(self) -> list[tuple[str, str]]:
         errors = []
+        if not 0.0 <= self.arm_torque_margin <= 1.0:
+            errors.append(("arm_torque_margin", "must be in [0, 1]: 0 off, else a fraction"))
         if self.sole_cone not in SOLE_CONES:
             errors.append(("sole_cone", f"must be one of {', '.join(SOLE_CONES)}"))
         if not 0.0 < self.sole_support_scale <= 1.0:

@@ -18,6 +18,7 @@ from locoman.to.collisions.spheres import link_spheres
 from locoman.to.problem.layout import (
     BODY_POINTS,
 )
+from locoman.to.terms.actuation import arm_torque_kind
 from locoman.to.terms.collisions import GEOMETRIES, collision_kind, homotopy_weight_kind
 from locoman.to.terms.contacts import (
     ONSETS,
@@ -130,5 +131,7 @@ def all_kinds(robot: RobotTerms) -> list[TermKind]:
         *robot.link_points.values(),
         *robot.link_spheres_between.values(),
         *robot.link_points_between.values(),
+        arm_torque_kind(0),
+        arm_torque_kind(1),
     ]
     return [*robot_kinds, *generic_kinds()]

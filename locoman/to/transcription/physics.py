@@ -14,6 +14,7 @@ from locoman.to.problem.layout import (
     limb,
 )
 from locoman.to.problem.modes import NodeMode
+from locoman.to.terms.actuation import arm_columns, arm_limits, arm_torque_kind
 from locoman.to.terms.contacts import (
     foot_cone_kind,
     foot_patch_kind,
@@ -244,6 +245,14 @@ def wrench_rows(section: Section) -> None:
                     "face": P[limb(par["hand_frames"], i), k],
                 }
                 b.own(object_face_cone_kind()).add(x, p)
+            if j is not None and contact.arm_torque_margin > 0.0:
+                x = {
+                    "wrench": at.limb(k, "hand_wrench", i),
+                    "R": at.hand(k, i, "R"),
+                    "q_arm": at.var(k, "q")[arm_columns(i)],
+                }
+                p = {"limit": contact.arm_torque_margin * arm_limits(i)}
+                b.own(arm_torque_kind(i)).add(x, p)
         for j, obj in enumerate(numbers.objects):
             if mode.supported(j):
                 support = mode.objects[j].support
