@@ -36,6 +36,7 @@ from locoman.retarget.robot import contact_frames
 from locoman.scene.g1 import G1_JOINT_NAMES
 from locoman.stage import DATA_DIR
 from locoman.to.io import TRAJECTORY, TRAJECTORY_FILE
+from locoman.to.terms.actuation import ARM_JOINTS
 
 STEPS = 2000
 
@@ -181,9 +182,6 @@ def plan_demands(ref, half_extents: np.ndarray, joints: tuple[str, ...] = G1_JOI
     }
 
 
-ARM_JOINTS = tuple(n for n in G1_JOINT_NAMES if any(p in n for p in ("shoulder", "elbow", "wrist")))
-
-
 def least_grip(ref, friction: float):
     """``ref`` with each two-handed carry's hand wrenches replaced by the least a friction
     grip needs: the plan's net force of the object on the hands shared equally, f_k = f/2 -
@@ -257,7 +255,7 @@ def measure(scenario: str, repeats: int) -> dict:
     # The same motion with the least grip friction allows: what no controller can lower.
     mu = float(np.max(traj["object_friction"], initial=0.0))
     out["plan_demands"]["least_grip_arm_torque_fraction_max"] = plan_demands(
-        least_grip(plan, mu), half, ARM_JOINTS
+        least_grip(plan, mu), half, (*ARM_JOINTS[0], *ARM_JOINTS[1])
     )["torque_fraction_max"]
     out["qp_solvers"] = {
         "qps": len(qps),

@@ -25,9 +25,9 @@ import pinocchio as pin
 
 from locoman.retarget.robot import contact_frames
 from locoman.scene import g1
+from locoman.to.terms.kinematics import axis_rotation, joint_axis
 from locoman.to.terms.term import Rows, TermKind, term_kind
 
-_AXES = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
 _GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2]
 
 #: Each side's arm joints, shoulder to wrist, as they sit in G1_JOINT_NAMES.
@@ -61,16 +61,6 @@ def arm_limits(side: int) -> np.ndarray:
     )
 
 
-def _rotation(axis: int, angle: ca.SX) -> ca.SX:
-    c, s = ca.cos(angle), ca.sin(angle)
-    rows = {
-        0: [[1, 0, 0], [0, c, -s], [0, s, c]],
-        1: [[c, 0, s], [0, 1, 0], [-s, 0, c]],
-        2: [[c, -s, 0], [s, c, 0], [0, 0, 1]],
-    }[axis]
-    return ca.vertcat(*(ca.horzcat(*row) for row in rows))
-
-
 def arm_torques(
     model: pin.Model, side: int, q_arm: ca.SX, R: ca.SX, wrench: ca.SX, point: np.ndarray
 ) -> ca.SX:
@@ -99,14 +89,15 @@ def arm_torques(
         inertia = model.inertias[j]
         masses.append(inertia.mass)
         centres.append(origin + rotation @ ca.DM(inertia.lever))
-        axis = rotation[:, _AXES[model.joints[j].shortname()]]
+        local_axis = joint_axis(model, j)
+        axis = rotation @ ca.DM(local_axis)
         total = ca.cross(point - origin, force) + moment
         for mass, centre in zip(masses, centres, strict=True):
             total += ca.cross(centre - origin, mass * gravity)
         torques[n] = -ca.dot(axis, total)  # what the motor holds against
         # The parent joint's frame: this one's, undone by its rotation and its placement.
         placement = model.jointPlacements[j]
-        undo = _rotation(_AXES[model.joints[j].shortname()], -q_arm[n])
+        undo = axis_rotation(local_axis, -q_arm[n])
         rotation_parent = rotation @ undo @ ca.DM(placement.rotation.T)
         origin = origin - rotation_parent @ ca.DM(placement.translation)
         rotation = rotation_parent

@@ -80,7 +80,13 @@ def euler_rates_to_world(rpy: ca.SX) -> ca.SX:
     )
 
 
-def _axis_rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
+def joint_axis(model: pin.Model, j: int) -> np.ndarray:
+    """(3,) revolute joint ``j``'s unit axis in its own frame."""
+    name = model.joints[j].shortname()
+    return np.asarray(_AXES[name]) if name in _AXES else np.asarray(model.joints[j].extract().axis)
+
+
+def axis_rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
     """Rotation by ``angle`` about a unit ``axis`` (Rodrigues)."""
     k = ca.DM(axis)
     skew = ca.skew(k)
@@ -123,11 +129,7 @@ class SymbolicKinematics:
         model = self.model
         placement = model.jointPlacements[j]
         inertia = model.inertias[j]
-        joint = model.joints[j]
-        axis = np.zeros(3)
-        if j >= 2:
-            name = joint.shortname()
-            axis = np.asarray(_AXES[name]) if name in _AXES else np.asarray(joint.extract().axis)
+        axis = joint_axis(model, j) if j >= 2 else np.zeros(3)
         return _Joint(
             parent=int(model.parents[j]),
             rotation=placement.rotation.copy(),
@@ -152,7 +154,7 @@ class SymbolicKinematics:
             R_parent, p_parent = poses[joint.parent]
             w_parent, v_parent = velocities[joint.parent]
             index = self.model.joints[j].idx_v  # the free flyer's 6 come first, as in q35
-            R = R_parent @ ca.DM(joint.rotation) @ _axis_rotation(joint.axis, q[index])
+            R = R_parent @ ca.DM(joint.rotation) @ axis_rotation(joint.axis, q[index])
             p = p_parent + R_parent @ ca.DM(joint.translation)
             w = w_parent + R @ ca.DM(joint.axis) * v[index]
             lin = v_parent + ca.cross(w_parent, p - p_parent)

@@ -230,6 +230,7 @@ def wrench_rows(section: Section) -> None:
     numbers, robot, P, par = section.numbers, section.robot, section.P, section.par
     contact = numbers.contact
     sole_half = contact.sole_support_scale * np.asarray(robot.frames.sole_half_extents, dtype=float)
+    arm_bounds = [contact.arm_torque_margin * arm_limits(i) for i in range(2)]
     for k, mode in enumerate(modes[:-1]):
         for i in range(2):
             if mode.feet[i]:
@@ -251,7 +252,7 @@ def wrench_rows(section: Section) -> None:
                     "R": at.hand(k, i, "R"),
                     "q_arm": at.var(k, "q")[arm_columns(i)],
                 }
-                p = {"limit": contact.arm_torque_margin * arm_limits(i)}
+                p = {"limit": arm_bounds[i]}
                 b.own(arm_torque_kind(i)).add(x, p)
         for j, obj in enumerate(numbers.objects):
             if mode.supported(j):
